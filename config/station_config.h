@@ -1,0 +1,109 @@
+// The station configuration (config/station.toml), parsed with toml++ and validated strictly:
+// an unknown key, a wrong type or a value out of range stops the program with one line naming
+// the file, line, key and what is expected.
+#pragma once
+
+#include "core/types.h"
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+
+namespace sherd::config {
+
+struct PathSettings {
+  std::filesystem::path data_dir;    // [station] data_dir; relative → to the working directory
+  std::filesystem::path database;    // data_dir/sherdscan.db
+  std::filesystem::path raw_dir;     // data_dir/raw      (raw views, written before processing)
+  std::filesystem::path output_dir;  // [station] output_dir, default data_dir/output
+  std::filesystem::path socket;      // [station] socket, default data_dir/sherdd.sock
+  std::filesystem::path log_file;    // data_dir/sherdd.log
+};
+
+struct ScanSettings {
+  int views = 8;                 // turntable stops per scan, evenly spaced over 360°
+  double start_angle_deg = 0.0;  // angle of the first view
+};
+
+struct ScannerSettings {
+  std::string driver = "simulated";  // "simulated" (more drivers come with [structured-light])
+  int width = 640, height = 480;     // pixels
+  double fx = 800.0, fy = 800.0;     // focal lengths in pixels
+  double cx = 319.5, cy = 239.5;     // principal point in pixels
+  // Calibrated pose of the scanner in the world (= turntable) frame: optical centre and a point
+  // the optical axis passes through; image "up" is towards +z of the world.
+  Vec3d position_mm{0.0, -420.0, 260.0};
+  Vec3d look_at_mm{0.0, 0.0, 50.0};
+  // Projector optical centre in the scanner frame (the structured-light baseline), for shadowing.
+  Vec3d projector_offset_mm{120.0, 0.0, 0.0};
+  // Noise model of the simulated scanner.
+  double depth_noise_mm = 0.05;       // standard deviation along the viewing ray
+  double grazing_limit_deg = 78.0;    // beyond this incidence angle no point is measured
+  double dropout_fraction = 0.01;     // random missing cells
+};
+
+struct TurntableSettings {
+  std::string driver = "simulated";  // "simulated" (the libusb driver comes with [turntable])
+  int steps_per_revolution = 3200;   // encoder / microstep resolution
+  double speed_deg_s = 90.0;
+  double acceleration_deg_s2 = 360.0;
+  double time_scale = 1.0;           // simulated motion time multiplier (0 = instantaneous)
+  std::string fault = "none";        // simulated fault: none | stall | timeout | disconnect
+  int fault_at_move = 1;             // the move (1-based, counting from the first move of a scan) that fails
+};
+
+struct SimulationSettings {
+  std::uint64_t seed = 42;
+  std::string scene = "frame";       // frame (sherds upright in a holding frame) | plate | vessel | empty
+  int sherds = 4;                    // number of sherds for frame / plate scenes
+  std::string background = "black";  // black | white
+};
+
+struct RegistrationSettings {
+  bool refine_with_icp = true;
+  double voxel_mm = 1.0;                  // downsampling before ICP
+  double max_correspondence_mm = 3.0;
+  int max_iterations = 40;
+  double max_correction_deg = 3.0;        // a larger correction from the turntable prior is flagged
+  double max_correction_mm = 5.0;
+};
+
+struct SegmentationSettings {
+  std::string background = "black";     // black | white | none: colour of plate/frame to remove
+  double cluster_tolerance_mm = 2.5;     // Euclidean clustering distance
+  int min_points = 400;                  // smaller clusters are reported as debris
+  double min_extent_mm = 12.0;
+  double max_extent_mm = 450.0;
+  double volume_radius_mm = 160.0;       // scanning volume: cylinder about the turntable axis
+  double volume_min_z_mm = 0.5;          // just above the plate
+  double volume_max_z_mm = 400.0;
+};
+
+struct RenderSettings {
+  int dpi = 600;
+  std::string material = "clay";              // a preset from the materials file
+  std::filesystem::path materials_file;       // relative → to the directory of the config file
+  std::string section_side = "right";         // right (German/Austrian) | left (British)
+};
+
+struct StationConfig {
+  std::filesystem::path source;  // the file it was read from (absolute)
+  std::string name = "simulated station";
+  PathSettings paths;
+  ScanSettings scan;
+  ScannerSettings scanner;
+  TurntableSettings turntable;
+  SimulationSettings simulation;
+  RegistrationSettings registration;
+  SegmentationSettings segmentation;
+  RenderSettings render;
+};
+
+// Reads and validates `file`. Throws sherd::InputError with one line:
+//   "<file>:<line>: <key>: expected <what>, got <what> — <what to do>".
+StationConfig load_station_config(const std::filesystem::path& file);
+
+// Re-roots every path derived from data_dir (used by `sherdd --data-dir`).
+void set_data_dir(StationConfig& config, const std::filesystem::path& data_dir);
+
+}  // namespace sherd::config

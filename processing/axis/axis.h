@@ -1,0 +1,35 @@
+// The axis of rotation of a sherd. First method: all normals of a surface of revolution meet its
+// axis, so the axis is the line complex that the normal lines fit best (Pottmann & Wallner),
+// inside RANSAC (fracture faces and noise are outliers), refined by Gauss-Newton.
+#pragma once
+
+#include "core/types.h"
+
+#include <cstdint>
+#include <string>
+
+namespace sherd::axis {
+
+struct AxisEstimate {
+  bool found = false;
+  Vec3d point = Vec3d::Zero();      // on the axis, closest to the sherd's centroid (world frame)
+  Vec3d direction = Vec3d::UnitZ(); // unit; sign not yet decided (see profile::orient)
+  std::string method;               // e.g. "normal-line-complex+ransac"
+  double angle_sd_deg = 0.0;
+  double offset_sd_mm = 0.0;
+  double rms_mm = 0.0;              // RMS distance of inlier normal lines to the axis
+  double inlier_share = 0.0;
+  std::string reason;               // when !found: too few points, too flat, not rotational, …
+};
+
+struct Params {
+  int ransac_iterations = 400;
+  double inlier_distance_mm = 2.0;  // normal line to axis distance
+  double min_inlier_share = 0.5;
+  std::uint64_t seed = 7;
+};
+
+// Needs normals (sherd.has_normals()).
+AxisEstimate estimate_axis(const Cloud& sherd, const Params& params = {});
+
+}  // namespace sherd::axis

@@ -1,0 +1,59 @@
+// From a sherd and its axis to what an archaeologist records: the upright orientation, the
+// outer and inner profile in the (radius, height) half-plane, and the measurements of sherd.json.
+#pragma once
+
+#include "core/types.h"
+#include "processing/axis/axis.h"
+
+#include <array>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace sherd::profile {
+
+using Polyline2 = std::vector<std::array<double, 2>>;  // (r, z) in mm, sherd frame
+
+struct Profile {
+  Polyline2 outer;  // from base end towards rim end
+  Polyline2 inner;
+  double section_angle_rad = 0.0;  // azimuth (about the axis, sherd frame) of the section half-plane
+};
+
+struct WallThickness {
+  double min = 0.0, mean = 0.0, max = 0.0;
+};
+
+struct Measurements {
+  std::optional<double> rim_diameter_mm;  // outer diameter at the highest profile point
+  std::optional<double> base_diameter_mm;
+  double max_diameter_mm = 0.0;
+  double height_mm = 0.0;  // preserved height along the axis
+  WallThickness wall_thickness_mm;
+  std::optional<double> rim_percent;  // preserved rim arc / 360° × 100
+  std::optional<double> rim_inclination_deg;
+  std::optional<double> volume_ml;
+};
+
+struct Analysis {
+  axis::AxisEstimate axis;  // direction now points from base towards rim
+  bool rim_up_certain = false;
+  bool has_rim = false;
+  bool has_base = false;
+  // Sherd frame → world: z along the axis (base → rim), origin = axis.point, x towards the section
+  // half-plane.
+  Pose sherd_to_world = Pose::Identity();
+  double arc_deg = 0.0;  // angular extent of the sherd about the axis
+  Profile profile;
+  Measurements measurements;
+};
+
+struct Params {
+  double section_half_width_deg = 2.0;  // slab of points around the section half-plane
+  double rim_band_mm = 2.0;             // points this close to the rim height count as rim
+};
+
+// Orients the axis (rim up), extracts the profile and measures. `axis.found` must be true.
+Analysis analyse(const Cloud& sherd, const axis::AxisEstimate& axis, const Params& params = {});
+
+}  // namespace sherd::profile

@@ -1,0 +1,46 @@
+// Splitting a fused scan into sherds: background removed by colour, plane and scanning volume,
+// then Euclidean clustering and size filters.
+#pragma once
+
+#include "core/types.h"
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace sherd::segmentation {
+
+enum class BackgroundColour { Black, White, None };
+
+struct Params {
+  BackgroundColour background = BackgroundColour::Black;
+  double cluster_tolerance_mm = 2.5;
+  int min_points = 400;
+  double min_extent_mm = 12.0;
+  double max_extent_mm = 450.0;
+  double volume_radius_mm = 160.0;  // cylinder about the world z axis; <= 0: no volume cut
+  double volume_min_z_mm = 0.5;
+  double volume_max_z_mm = 400.0;
+};
+
+struct Part {
+  std::string id;                       // "s01", "s02", … ordered by centroid (x, then y)
+  std::vector<std::uint32_t> indices;   // into the input mesh's vertices
+  Mesh mesh;                            // the sub-mesh
+  Box3 bbox;
+};
+
+struct Rejected {
+  std::vector<std::uint32_t> indices;
+  std::string reason;  // "too small: 120 points < 400", "too large: extent 612 mm > 450 mm"
+};
+
+struct Result {
+  std::vector<Part> sherds;
+  std::vector<Rejected> rejected;
+  std::size_t background_points = 0;
+};
+
+Result segment(const Mesh& fused, const Params& params);
+
+}  // namespace sherd::segmentation

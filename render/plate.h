@@ -1,0 +1,40 @@
+// The publication plate of one sherd: the exterior rendered headlessly (EGL, Lafortune BRDF) at
+// real scale next to the black profile section, axis line, scale bar and key measurements.
+// Writes plate.png (pHYs = dpi) and profile.svg (1 user unit = 1 mm).
+#pragma once
+
+#include "core/types.h"
+#include "processing/profile/profile.h"
+
+#include <filesystem>
+#include <string>
+
+namespace sherd::render {
+
+struct PlateSettings {
+  int dpi = 600;
+  std::string material = "clay";
+  std::filesystem::path materials_file;  // config/materials.xml
+  bool section_on_right = true;          // German/Austrian convention; false = British
+};
+
+struct PlateInput {
+  std::string scan_id;
+  std::string sherd_id;
+  const Mesh* mesh = nullptr;          // the sherd in the world frame
+  const profile::Analysis* analysis = nullptr;  // nullptr or !axis.found: body sherd without axis
+};
+
+struct PlateFiles {
+  std::filesystem::path png;
+  std::filesystem::path svg;
+  int width_px = 0, height_px = 0;
+};
+
+// Renders into `dir` (created if missing). Throws sherd::InputError for a bad materials file or an
+// unknown preset, sherd::ProcessingError when no EGL context can be made (the message names what
+// is missing).
+PlateFiles render_plate(const PlateInput& input, const PlateSettings& settings,
+                        const std::filesystem::path& dir);
+
+}  // namespace sherd::render
