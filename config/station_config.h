@@ -12,12 +12,15 @@
 namespace sherd::config {
 
 struct PathSettings {
-  std::filesystem::path data_dir;    // [station] data_dir; relative → to the working directory
+  std::filesystem::path data_dir;    // [station] data_dir ("data"); relative → to the working dir
   std::filesystem::path database;    // data_dir/sherdscan.db
   std::filesystem::path raw_dir;     // data_dir/raw      (raw views, written before processing)
   std::filesystem::path output_dir;  // [station] output_dir, default data_dir/output
   std::filesystem::path socket;      // [station] socket, default data_dir/sherdd.sock
   std::filesystem::path log_file;    // data_dir/sherdd.log
+  // Whether output_dir / socket were set explicitly in [station] (then set_data_dir keeps them).
+  bool output_dir_from_config = false;
+  bool socket_from_config = false;
 };
 
 struct ScanSettings {

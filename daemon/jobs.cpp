@@ -1,0 +1,287 @@
+#include "daemon/jobs.h"
+
+#include "core/errors.h"
+#include "daemon/pipeline.h"
+#include "db/event_sink.h"
+#include "processing/io/model_io.h"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <cmath>
+#include <ctime>
+#include <set>
+
+namespace sherd::station {
+namespace {
+
+std::string utc_now() {
+  const auto now = std::chrono::system_clock::now();
+  const auto t = std::chrono::system_clock::to_time_t(now);
+  const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(now.time_since_epoch()).count() % 1000;
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  return fmt::format("{:04}-{:02}-{:02}T{:02}:{:02}:{:02}.{:03}Z", tm.tm_year + 1900, tm.tm_mon + 1,
+                     tm.tm_mday, tm.tm_hour, tm.tm_min, tm.tm_sec, ms);
+}
+
+constexpr double kDeg = M_PI / 180.0;
+
+}  // namespace
+
+void Subscription::push(const nlohmann::json& event) {
+  {
+    std::lock_guard lock(mutex_);
+    events_.push_back(event);
+  }
+  ready_.notify_all();
+}
+
+std::optional<nlohmann::json> Subscription::next() {
+  std::unique_lock lock(mutex_);
+  ready_.wait(lock, [&] { return !events_.empty() || closed_; });
+  if (events_.empty()) return std::nullopt;
+  auto event = std::move(events_.front());
+  events_.pop_front();
+  return event;
+}
+
+void Subscription::close() {
+  {
+    std::lock_guard lock(mutex_);
+    closed_ = true;
+  }
+  ready_.notify_all();
+}
+
+JobRunner::JobRunner(const config::StationConfig& config, std::shared_ptr<db::Store> store, Station station)
+    : config_(config), store_(std::move(store)), station_(std::move(station)) {}
+
+JobRunner::~JobRunner() { stop(); }
+
+void JobRunner::start() {
+  for (const auto& scan : store_->unfinished_scans()) {
+    std::lock_guard lock(mutex_);
+    if (scan.source != "station") continue;
+    if (scan.state == db::ScanState::Acquiring) {
+      spdlog::info("resuming scan {}: acquisition ({} of {} views on disk)", scan.id,
+                   store_->views(scan.id).size(), scan.planned_views);
+      to_acquire_.push_back(scan.id);
+    } else {
+      spdlog::info("resuming scan {}: processing from its raw views", scan.id);
+      to_process_.push_back(scan.id);
+    }
+  }
+  acquisition_thread_ = std::thread([this] { acquisition_loop(); });
+  processing_thread_ = std::thread([this] { processing_loop(); });
+}
+
+void JobRunner::stop() {
+  if (stopping_.exchange(true)) {
+    if (acquisition_thread_.joinable()) acquisition_thread_.join();
+    if (processing_thread_.joinable()) processing_thread_.join();
+    return;
+  }
+  work_.notify_all();
+  if (acquisition_thread_.joinable()) acquisition_thread_.join();
+  if (processing_thread_.joinable()) processing_thread_.join();
+  std::lock_guard lock(mutex_);
+  for (auto& [id, weak] : subscribers_) {
+    if (auto sub = weak.lock()) sub->close();
+  }
+  subscribers_.clear();
+}
+
+std::pair<std::string, std::shared_ptr<Subscription>> JobRunner::submit_scan() {
+  if (stopping_) throw InputError("sherdd is shutting down: no new scans; start it again and retry");
+  const nlohmann::json settings = {{"views", config_.scan.views},
+                                   {"start_angle_deg", config_.scan.start_angle_deg},
+                                   {"dpi", config_.render.dpi},
+                                   {"material", config_.render.material},
+                                   {"config", config_.source.string()}};
+  const auto scan_id = store_->create_scan("station", config_.scan.views, settings,
+                                           config_.paths.output_dir.string());
+  auto subscription = std::make_shared<Subscription>();
+  {
+    std::lock_guard lock(mutex_);
+    subscribers_.emplace(scan_id, subscription);
+    to_acquire_.push_back(scan_id);
+  }
+  work_.notify_all();
+  spdlog::info("scan {} queued ({} views)", scan_id, config_.scan.views);
+  return {scan_id, subscription};
+}
+
+std::shared_ptr<Subscription> JobRunner::subscribe(const std::string& scan_id) {
+  auto subscription = std::make_shared<Subscription>();
+  std::lock_guard lock(mutex_);
+  subscribers_.emplace(scan_id, subscription);
+  return subscription;
+}
+
+void JobRunner::publish(const std::string& scan_id, nlohmann::json event) {
+  event["scan_id"] = scan_id;
+  const bool final_event = event.value("event", "") == "finished";
+  std::lock_guard lock(mutex_);
+  auto [first, last] = subscribers_.equal_range(scan_id);
+  for (auto it = first; it != last;) {
+    if (auto sub = it->second.lock()) {
+      sub->push(event);
+      if (final_event) sub->close();
+      ++it;
+    } else {
+      it = subscribers_.erase(it);
+    }
+  }
+  if (final_event) subscribers_.erase(scan_id);
+}
+
+nlohmann::json JobRunner::status() const {
+  nlohmann::json turntable = {{"device", station_.turntable->describe()},
+                              {"state", drivers::to_string(station_.turntable->state())}};
+  try {
+    turntable["position_deg"] = station_.turntable->position() / kDeg;
+  } catch (const std::exception& e) {
+    turntable["position_deg"] = nullptr;
+    turntable["error"] = e.what();
+  }
+  std::lock_guard lock(mutex_);
+  return {{"station", config_.name},
+          {"scanner", station_.scanner->describe()},
+          {"turntable", turntable},
+          {"acquiring", acquiring_.empty() ? nlohmann::json(nullptr) : nlohmann::json(acquiring_)},
+          {"processing", processing_.empty() ? nlohmann::json(nullptr) : nlohmann::json(processing_)},
+          {"queued_acquisitions", to_acquire_.size()},
+          {"queued_processing", to_process_.size()},
+          {"output_dir", config_.paths.output_dir.string()},
+          {"database", config_.paths.database.string()}};
+}
+
+void JobRunner::acquisition_loop() {
+  while (true) {
+    std::string scan_id;
+    {
+      std::unique_lock lock(mutex_);
+      work_.wait(lock, [&] { return stopping_ || !to_acquire_.empty(); });
+      if (stopping_) return;
+      scan_id = to_acquire_.front();
+      to_acquire_.pop_front();
+      acquiring_ = scan_id;
+    }
+    acquire(scan_id);
+    std::lock_guard lock(mutex_);
+    acquiring_.clear();
+  }
+}
+
+void JobRunner::processing_loop() {
+  while (true) {
+    std::string scan_id;
+    {
+      std::unique_lock lock(mutex_);
+      work_.wait(lock, [&] { return stopping_ || !to_process_.empty(); });
+      if (stopping_) return;
+      scan_id = to_process_.front();
+      to_process_.pop_front();
+      processing_ = scan_id;
+    }
+    process(scan_id);
+    std::lock_guard lock(mutex_);
+    processing_.clear();
+  }
+}
+
+void JobRunner::fail(const std::string& scan_id, const std::string& reason) {
+  spdlog::error("scan {} failed: {}", scan_id, reason);
+  store_->set_scan_state(scan_id, db::ScanState::Failed, reason);
+  publish(scan_id, {{"event", "finished"}, {"state", "failed"}, {"reason", reason}});
+}
+
+void JobRunner::acquire(const std::string& scan_id) {
+  db::ScanLogScope log_scope(scan_id);
+  const auto start = std::chrono::steady_clock::now();
+  try {
+    const auto scan = store_->scan(scan_id);
+    if (!scan) throw InputError(fmt::format("scan {} vanished from the database", scan_id));
+    std::set<int> on_disk;
+    for (const auto& v : store_->views(scan_id)) on_disk.insert(v.index);
+    const int planned = scan->planned_views;
+    const double start_deg = scan->settings.value("start_angle_deg", 0.0);
+    const auto raw_dir = config_.paths.raw_dir / scan_id;
+    std::filesystem::create_directories(raw_dir);
+
+    if (static_cast<int>(on_disk.size()) < planned) {
+      publish(scan_id, {{"event", "stage"}, {"stage", "acquisition"}, {"state", "started"},
+                        {"views", planned}, {"on_disk", on_disk.size()}});
+      // Homing gives the encoder its zero; after a restart the plate may stand anywhere.
+      station_.turntable->home();
+    }
+    for (int index = 0; index < planned; ++index) {
+      if (on_disk.count(index)) continue;
+      if (stopping_) {
+        spdlog::info("stopping: scan {} keeps its {} views and resumes at the next start", scan_id,
+                     store_->views(scan_id).size());
+        return;
+      }
+      const double commanded_deg = start_deg + 360.0 * index / planned;
+      db::ViewRecord record;
+      record.scan_id = scan_id;
+      record.index = index;
+      record.commanded_angle_deg = commanded_deg;
+      record.started_at = utc_now();
+      record.measured_angle_deg = station_.turntable->move_to(commanded_deg * kDeg) / kDeg;
+      const auto view = station_.scanner->capture();
+      record.captured_at = utc_now();
+      record.valid_points = static_cast<std::int64_t>(view.valid_count());
+      const auto raw = raw_dir / fmt::format("view_{:03}.pcd", index);
+      io::write_view(raw, view);  // on disk before it is recorded: the record never points at nothing
+      record.raw_path = raw.string();
+      store_->add_view(record);
+      spdlog::info("view {}/{} at {:.3f}° ({} points) → {}", index + 1, planned,
+                   record.measured_angle_deg, record.valid_points, raw.string());
+      publish(scan_id, {{"event", "view"}, {"index", index}, {"views", planned},
+                        {"angle_deg", record.measured_angle_deg}, {"points", record.valid_points}});
+    }
+    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    store_->add_stage(scan_id, "acquisition", ms, {{"views", planned}, {"resumed_with", on_disk.size()}});
+    store_->set_scan_state(scan_id, db::ScanState::Acquired);
+    {
+      std::lock_guard lock(mutex_);
+      to_process_.push_back(scan_id);
+    }
+    work_.notify_all();
+  } catch (const std::exception& e) {
+    fail(scan_id, fmt::format("acquisition: {} (views already captured are kept in {})", e.what(),
+                              (config_.paths.raw_dir / scan_id).string()));
+  }
+}
+
+void JobRunner::process(const std::string& scan_id) {
+  db::ScanLogScope log_scope(scan_id);
+  const auto start = std::chrono::steady_clock::now();
+  try {
+    store_->set_scan_state(scan_id, db::ScanState::Processing);
+    std::vector<ViewFile> views;
+    for (const auto& v : store_->views(scan_id)) {
+      views.push_back({v.index, v.raw_path, v.measured_angle_deg * kDeg});
+    }
+    Pipeline pipeline(config_, *store_, [this, scan_id](const nlohmann::json& e) { publish(scan_id, e); });
+    const auto outcome = pipeline.process_views(scan_id, views, station_.scanner_to_world);
+    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    store_->add_stage(scan_id, "processing", ms, {{"sherds", outcome.sherds.size()}});
+    store_->set_scan_state(scan_id, db::ScanState::Done);
+    auto sherds = nlohmann::json::array();
+    for (const auto& s : outcome.sherds) {
+      sherds.push_back({{"sherd_id", s.sherd_id}, {"plate", s.plate.string()}, {"axis_found", s.axis_found},
+                        {"reason", s.reason}});
+    }
+    spdlog::info("scan {} done: {} sherds in {}", scan_id, outcome.sherds.size(), outcome.dir.string());
+    publish(scan_id, {{"event", "finished"}, {"state", "done"}, {"output_dir", outcome.dir.string()},
+                      {"sherds", sherds}});
+  } catch (const std::exception& e) {
+    fail(scan_id, fmt::format("processing: {} (raw views kept; re-run after fixing)", e.what()));
+  }
+}
+
+}  // namespace sherd::station

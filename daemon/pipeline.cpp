@@ -1,0 +1,256 @@
+#include "daemon/pipeline.h"
+
+#include "core/errors.h"
+#include "daemon/documents.h"
+#include "processing/axis/axis.h"
+#include "processing/io/model_io.h"
+#include "processing/profile/profile.h"
+#include "processing/registration/registration.h"
+#include "render/plate.h"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <fstream>
+
+namespace sherd::station {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double ms_since(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+// Writes JSON through a temporary file and a rename, so a reader never sees half a document.
+void write_json_file(const std::filesystem::path& file, const nlohmann::json& doc) {
+  const auto tmp = std::filesystem::path(file.string() + ".tmp");
+  {
+    std::ofstream out(tmp);
+    if (!out) throw InputError(fmt::format("cannot write {}: check the output directory is writable", tmp.string()));
+    out << doc.dump(2) << '\n';
+  }
+  std::filesystem::rename(tmp, file);
+}
+
+registration::Params registration_params(const config::RegistrationSettings& s) {
+  registration::Params p;
+  p.refine_with_icp = s.refine_with_icp;
+  p.voxel_mm = s.voxel_mm;
+  p.max_correspondence_mm = s.max_correspondence_mm;
+  p.max_iterations = s.max_iterations;
+  p.max_correction_deg = s.max_correction_deg;
+  p.max_correction_mm = s.max_correction_mm;
+  return p;
+}
+
+render::PlateSettings plate_settings(const config::RenderSettings& s) {
+  return render::PlateSettings{s.dpi, s.material, s.materials_file, s.section_side != "left"};
+}
+
+nlohmann::json view_figures(const registration::ViewResult& v) {
+  return {{"pose", to_json(v.pose)},       {"rms_mm", v.rms_mm},
+          {"overlap", v.overlap},          {"iterations", v.iterations},
+          {"correction_deg", v.correction_deg}, {"correction_mm", v.correction_mm},
+          {"refined", v.refined},          {"flags", v.flags}};
+}
+
+}  // namespace
+
+segmentation::Params segmentation_params(const config::SegmentationSettings& s) {
+  segmentation::Params p;
+  p.background = s.background == "white"  ? segmentation::BackgroundColour::White
+                 : s.background == "none" ? segmentation::BackgroundColour::None
+                                          : segmentation::BackgroundColour::Black;
+  p.cluster_tolerance_mm = s.cluster_tolerance_mm;
+  p.min_points = s.min_points;
+  p.min_extent_mm = s.min_extent_mm;
+  p.max_extent_mm = s.max_extent_mm;
+  p.volume_radius_mm = s.volume_radius_mm;
+  p.volume_min_z_mm = s.volume_min_z_mm;
+  p.volume_max_z_mm = s.volume_max_z_mm;
+  return p;
+}
+
+Pipeline::Pipeline(const config::StationConfig& config, db::Store& store, EventFn on_event)
+    : config_(config), store_(store), on_event_(std::move(on_event)) {}
+
+void Pipeline::emit(const nlohmann::json& event) const {
+  if (on_event_) on_event_(event);
+}
+
+void Pipeline::record_stage(const std::string& scan_id, const std::string& stage, double ms,
+                            const nlohmann::json& figures) {
+  store_.add_stage(scan_id, stage, ms, figures);
+  spdlog::info("{}: {:.0f} ms {}", stage, ms, figures.dump());
+  emit({{"event", "stage"}, {"scan_id", scan_id}, {"stage", stage}, {"ms", ms}, {"figures", figures}});
+}
+
+ScanOutcome Pipeline::process_views(const std::string& scan_id, const std::vector<ViewFile>& views,
+                                    const Pose& scanner_to_world) {
+  auto start = Clock::now();
+  std::vector<OrganisedView> loaded;
+  loaded.reserve(views.size());
+  for (const auto& v : views) loaded.push_back(io::read_view(v.raw_path));
+  std::vector<registration::ViewInput> inputs;
+  for (std::size_t i = 0; i < views.size(); ++i) {
+    inputs.push_back({&loaded[i], registration::turntable_prior(scanner_to_world, views[i].angle_rad)});
+  }
+  emit({{"event", "stage"}, {"scan_id", scan_id}, {"stage", "registration"}, {"state", "started"}});
+  const auto registered = registration::register_views(inputs, registration_params(config_.registration));
+
+  auto view_docs = nlohmann::json::array();
+  int flagged = 0;
+  for (std::size_t i = 0; i < views.size(); ++i) {
+    const auto& r = registered.views[i];
+    auto figures = view_figures(r);
+    store_.set_view_registration(scan_id, views[i].index, figures);
+    for (const auto& flag : r.flags) {
+      ++flagged;
+      spdlog::warn("view {}: {} (kept at the turntable prior: not merged blindly)", views[i].index, flag);
+    }
+    figures["index"] = views[i].index;
+    figures["raw"] = views[i].raw_path.string();
+    figures["angle_deg"] = views[i].angle_rad * 180.0 / M_PI;
+    view_docs.push_back(figures);
+  }
+  record_stage(scan_id, "registration", ms_since(start),
+               {{"views", views.size()}, {"flagged_views", flagged},
+                {"fused_points", registered.fused.vertices.size()}});
+
+  nlohmann::json scan_doc = {{"views", view_docs}};
+  return analyse_scan(scan_id, registered.fused, segmentation_params(config_.segmentation), scan_doc);
+}
+
+ScanOutcome Pipeline::process_model(const std::string& scan_id, const Mesh& model,
+                                    const segmentation::Params& params, const std::string& source_file) {
+  nlohmann::json scan_doc = {{"source_file", source_file}, {"views", nlohmann::json::array()}};
+  return analyse_scan(scan_id, model, params, scan_doc);
+}
+
+ScanOutcome Pipeline::analyse_scan(const std::string& scan_id, const Mesh& fused,
+                                   const segmentation::Params& params, nlohmann::json scan_doc) {
+  ScanOutcome outcome;
+  outcome.scan_id = scan_id;
+  outcome.dir = config_.paths.output_dir / scan_id;
+  std::filesystem::create_directories(outcome.dir);
+  store_.clear_results(scan_id);  // a re-run (resume) replaces earlier partial results
+
+  auto start = Clock::now();
+  emit({{"event", "stage"}, {"scan_id", scan_id}, {"stage", "segmentation"}, {"state", "started"}});
+  const auto parts = segmentation::segment(fused, params);
+  auto rejected = nlohmann::json::array();
+  for (const auto& r : parts.rejected) {
+    spdlog::warn("cluster of {} points not taken as a sherd: {}", r.indices.size(), r.reason);
+    rejected.push_back({{"points", r.indices.size()}, {"reason", r.reason}});
+  }
+  record_stage(scan_id, "segmentation", ms_since(start),
+               {{"sherds", parts.sherds.size()}, {"rejected", rejected},
+                {"background_points", parts.background_points}});
+  if (parts.sherds.empty()) spdlog::info("no sherds found in scan {}", scan_id);
+
+  auto sherd_docs = nlohmann::json::array();
+  for (const auto& part : parts.sherds) {
+    const auto sherd = analyse_sherd(scan_id, part, outcome.dir);
+    sherd_docs.push_back({{"sherd_id", sherd.sherd_id},
+                          {"dir", sherd.sherd_id},
+                          {"points", part.mesh.vertices.size()},
+                          {"axis_found", sherd.axis_found},
+                          {"reason", sherd.reason.empty() ? nlohmann::json(nullptr) : nlohmann::json(sherd.reason)},
+                          {"plate", (std::filesystem::path(sherd.sherd_id) / "plate.png").string()}});
+    outcome.sherds.push_back(sherd);
+  }
+
+  scan_doc["schema"] = "sherdscan.scan/1";
+  scan_doc["scan_id"] = scan_id;
+  scan_doc["station"] = config_.name;
+  scan_doc["segmentation"] = {{"sherds", parts.sherds.size()}, {"rejected", rejected},
+                              {"background_points", parts.background_points},
+                              {"message", parts.sherds.empty() ? "no sherds found" : ""}};
+  scan_doc["sherds"] = sherd_docs;
+  scan_doc["stages"] = store_.stages(scan_id);
+  write_json_file(outcome.dir / "scan.json", scan_doc);
+  store_.add_artifact(scan_id, "", "scan", (outcome.dir / "scan.json").string());
+  return outcome;
+}
+
+SherdOutcome Pipeline::analyse_sherd(const std::string& scan_id, const segmentation::Part& part,
+                                     const std::filesystem::path& scan_dir) {
+  SherdOutcome out;
+  out.sherd_id = part.id;
+  out.dir = scan_dir / part.id;
+  std::filesystem::create_directories(out.dir);
+
+  auto start = Clock::now();
+  const auto axis = axis::estimate_axis(part.mesh.vertices);
+  record_stage(scan_id, "axis:" + part.id, ms_since(start),
+               {{"found", axis.found}, {"method", axis.method}, {"angle_sd_deg", axis.angle_sd_deg},
+                {"offset_sd_mm", axis.offset_sd_mm}, {"inlier_share", axis.inlier_share},
+                {"reason", axis.reason}});
+
+  // A sherd without a usable axis (a body sherd too flat, a stone) is not a failure of the scan:
+  // it still gets its mesh, exterior views and a sherd.json saying why there is no profile.
+  std::optional<profile::Analysis> analysis;
+  out.axis_found = axis.found;
+  out.reason = axis.reason;
+  if (axis.found) {
+    start = Clock::now();
+    try {
+      analysis = profile::analyse(part.mesh.vertices, axis);
+    } catch (const ProcessingError& e) {
+      out.axis_found = false;
+      out.reason = fmt::format("axis found but no profile: {}", e.what());
+      spdlog::warn("sherd {}: {}", part.id, out.reason);
+    }
+    if (analysis) {
+      const auto& m = analysis->measurements;
+      record_stage(scan_id, "profile:" + part.id, ms_since(start),
+                   {{"rim_diameter_mm", m.rim_diameter_mm ? nlohmann::json(*m.rim_diameter_mm) : nlohmann::json(nullptr)},
+                    {"rim_percent", m.rim_percent ? nlohmann::json(*m.rim_percent) : nlohmann::json(nullptr)},
+                    {"wall_mean_mm", m.wall_thickness_mm.mean},
+                    {"rim_up_certain", analysis->rim_up_certain}});
+    }
+  } else {
+    spdlog::warn("sherd {}: no axis: {}", part.id, axis.reason);
+  }
+
+  start = Clock::now();
+  io::write_ply(out.dir / "sherd.ply", part.mesh);
+  render::PlateInput plate_input{scan_id, part.id, &part.mesh, analysis ? &*analysis : nullptr};
+  const auto files = render::render_plate(plate_input, plate_settings(config_.render), out.dir);
+  out.plate = files.png;
+  record_stage(scan_id, "plate:" + part.id, ms_since(start),
+               {{"width_px", files.width_px}, {"height_px", files.height_px}, {"dpi", config_.render.dpi}});
+
+  auto doc = sherd_document(scan_id, part.id, part.mesh, axis, analysis ? &*analysis : nullptr);
+  if (!out.axis_found) doc["axis"]["reason"] = out.reason;
+  write_json_file(out.dir / "sherd.json", doc);
+
+  store_.add_sherd({scan_id, part.id, static_cast<std::int64_t>(part.mesh.vertices.size()), doc});
+  if (analysis) {
+    const auto& m = analysis->measurements;
+    store_.add_measurement(scan_id, part.id, "rim_diameter", m.rim_diameter_mm, "mm");
+    store_.add_measurement(scan_id, part.id, "base_diameter", m.base_diameter_mm, "mm");
+    store_.add_measurement(scan_id, part.id, "max_diameter", m.max_diameter_mm, "mm");
+    store_.add_measurement(scan_id, part.id, "height", m.height_mm, "mm");
+    store_.add_measurement(scan_id, part.id, "wall_thickness_min", m.wall_thickness_mm.min, "mm");
+    store_.add_measurement(scan_id, part.id, "wall_thickness_mean", m.wall_thickness_mm.mean, "mm");
+    store_.add_measurement(scan_id, part.id, "wall_thickness_max", m.wall_thickness_mm.max, "mm");
+    store_.add_measurement(scan_id, part.id, "rim_percent", m.rim_percent, "%");
+    store_.add_measurement(scan_id, part.id, "rim_inclination", m.rim_inclination_deg, "deg");
+    store_.add_measurement(scan_id, part.id, "volume", m.volume_ml, "ml");
+    store_.add_measurement(scan_id, part.id, "axis_angle_sd", analysis->axis.angle_sd_deg, "deg");
+    store_.add_measurement(scan_id, part.id, "axis_offset_sd", analysis->axis.offset_sd_mm, "mm");
+  }
+  for (const auto& [kind, file] : {std::pair{"plate", "plate.png"}, {"profile", "profile.svg"},
+                                   {"mesh", "sherd.ply"}, {"sherd", "sherd.json"}}) {
+    store_.add_artifact(scan_id, part.id, kind, (out.dir / file).string());
+  }
+  emit({{"event", "sherd"}, {"scan_id", scan_id}, {"sherd_id", part.id}, {"plate", out.plate.string()},
+        {"axis_found", out.axis_found}, {"reason", out.reason}});
+  spdlog::info("sherd {}: plate {}", part.id, out.plate.string());
+  return out;
+}
+
+}  // namespace sherd::station

@@ -1,0 +1,250 @@
+// sherdctl — the operator's and scripts' client: press scan, look at the station and past scans
+// (through sherdd's socket), or run the pipeline offline on existing files (no daemon needed).
+#include "config/station_config.h"
+#include "core/errors.h"
+#include "daemon/pipeline.h"
+#include "daemon/protocol.h"
+#include "db/event_sink.h"
+#include "db/store.h"
+#include "processing/io/model_io.h"
+
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+#include <spdlog/sinks/basic_file_sink.h>
+#include <spdlog/spdlog.h>
+
+#include <cstdlib>
+#include <iostream>
+
+namespace {
+
+using nlohmann::json;
+using sherd::station::JsonLineSocket;
+
+struct Options {
+  std::string config_file = "config/station.toml";
+  std::string socket;
+  bool as_json = false;
+};
+
+std::filesystem::path socket_path(const Options& options) {
+  if (!options.socket.empty()) return options.socket;
+  if (const char* env = std::getenv("SHERD_SOCKET")) return env;
+  return sherd::config::load_station_config(options.config_file).paths.socket;
+}
+
+json request(const Options& options, const json& message) {
+  auto socket = sherd::station::connect_unix(socket_path(options));
+  socket.send(message);
+  auto reply = socket.receive();
+  if (!reply) throw sherd::InputError("sherdd closed the connection without answering: see its log");
+  if (!reply->value("ok", false)) throw sherd::InputError(reply->value("error", "sherdd refused the request"));
+  return *reply;
+}
+
+std::string fixed(const json& value, const char* unit) {
+  return value.is_number() ? fmt::format("{:.1f} {}", value.get<double>(), unit) : "—";
+}
+
+// Streams a scan's events (after the first reply) to the terminal, and the plates' paths to
+// stdout when `print_plates`; returns the exit code.
+int follow_events(JsonLineSocket& socket, const std::string& scan_id, bool as_json, bool print_plates) {
+  while (auto event = socket.receive()) {
+    if (as_json) std::cout << event->dump() << std::endl;
+    const std::string kind = event->value("event", "");
+    if (kind == "view") {
+      std::cerr << fmt::format("[acquisition] view {}/{} at {:.2f}° ({} points)\n",
+                               event->value("index", 0) + 1, event->value("views", 0),
+                               event->value("angle_deg", 0.0), event->value("points", 0));
+    } else if (kind == "stage" && event->contains("ms")) {
+      std::cerr << fmt::format("[{}] {:.0f} ms\n", event->value("stage", ""), event->value("ms", 0.0));
+    } else if (kind == "sherd") {
+      std::cerr << fmt::format("[sherd {}] {}\n", event->value("sherd_id", ""),
+                               event->value("axis_found", false) ? "axis found" : "no axis: " + event->value("reason", ""));
+    } else if (kind == "finished") {
+      if (event->value("state", "") != "done") {
+        std::cerr << fmt::format("sherdctl: scan {} failed: {}\n", scan_id, event->value("reason", ""));
+        return 1;
+      }
+      if (print_plates && !as_json) {
+        const auto& sherds = (*event)["sherds"];
+        if (sherds.empty()) std::cerr << fmt::format("scan {}: no sherds found\n", scan_id);
+        for (const auto& s : sherds) std::cout << s.value("plate", "") << '\n';
+      }
+      return 0;
+    }
+  }
+  std::cerr << fmt::format("sherdctl: lost the connection to sherdd; scan {} resumes when sherdd runs again "
+                           "(follow it with `sherdctl show {} --wait`)\n", scan_id, scan_id);
+  return 1;
+}
+
+int cmd_scan(const Options& options) {
+  auto socket = sherd::station::connect_unix(socket_path(options));
+  socket.send({{"cmd", "scan"}});
+  auto reply = socket.receive();
+  if (!reply || !reply->value("ok", false)) {
+    throw sherd::InputError(reply ? reply->value("error", "scan refused") : "sherdd closed the connection");
+  }
+  const std::string scan_id = reply->value("scan_id", "");
+  std::cerr << fmt::format("scan {} started\n", scan_id);
+  return follow_events(socket, scan_id, options.as_json, true);
+}
+
+int cmd_status(const Options& options) {
+  const auto status = request(options, {{"cmd", "status"}})["status"];
+  if (options.as_json) {
+    std::cout << status.dump(2) << '\n';
+    return 0;
+  }
+  const auto& t = status["turntable"];
+  std::cout << fmt::format("station     {}\nscanner     {}\nturntable   {} — {}{}\n", status.value("station", ""),
+                           status.value("scanner", ""), t.value("device", ""), t.value("state", ""),
+                           t["position_deg"].is_number() ? fmt::format(" at {:.2f}°", t["position_deg"].get<double>()) : "");
+  std::cout << fmt::format("acquiring   {}\nprocessing  {}\nqueued      {} to acquire, {} to process\noutput      {}\n",
+                           status["acquiring"].is_null() ? "—" : status["acquiring"].get<std::string>(),
+                           status["processing"].is_null() ? "—" : status["processing"].get<std::string>(),
+                           status.value("queued_acquisitions", 0), status.value("queued_processing", 0),
+                           status.value("output_dir", ""));
+  return 0;
+}
+
+int cmd_jobs(const Options& options, int limit) {
+  const auto jobs = request(options, {{"cmd", "jobs"}, {"limit", limit}})["jobs"];
+  if (options.as_json) {
+    std::cout << jobs.dump(2) << '\n';
+    return 0;
+  }
+  std::cout << fmt::format("{:<22} {:<10} {:>5} {:>6}  {}\n", "SCAN", "STATE", "VIEWS", "SHERDS", "CREATED / REASON");
+  for (const auto& j : jobs) {
+    std::cout << fmt::format("{:<22} {:<10} {:>2}/{:<2} {:>6}  {}\n", j.value("scan_id", ""), j.value("state", ""),
+                             j.value("views", 0), j.value("planned_views", 0), j.value("sherds", 0),
+                             j.value("reason", "").empty() ? j.value("created_at", "") : j.value("reason", ""));
+  }
+  return 0;
+}
+
+int cmd_show(const Options& options, const std::string& scan_id, bool wait) {
+  if (wait) {
+    auto socket = sherd::station::connect_unix(socket_path(options));
+    socket.send({{"cmd", "follow"}, {"scan_id", scan_id}});
+    auto reply = socket.receive();
+    if (!reply || !reply->value("ok", false)) {
+      throw sherd::InputError(reply ? reply->value("error", "") : "sherdd closed the connection");
+    }
+    const int code = follow_events(socket, scan_id, false, false);  // the summary below says it all
+    if (code != 0) return code;
+  }
+  const auto shown = request(options, {{"cmd", "show"}, {"scan_id", scan_id}});
+  if (options.as_json) {
+    std::cout << shown.dump(2) << '\n';
+    return 0;
+  }
+  const auto& scan = shown["scan"];
+  std::cout << fmt::format("scan {}  {}{}\ncreated {}  updated {}\nviews {}/{}  output {}\n", scan.value("scan_id", ""),
+                           scan.value("state", ""), scan.value("reason", "").empty() ? "" : ": " + scan.value("reason", ""),
+                           scan.value("created_at", ""), scan.value("updated_at", ""), scan.value("views", 0),
+                           scan.value("planned_views", 0), scan.value("output_dir", ""));
+  for (const auto& stage : shown["stages"]) {
+    std::cout << fmt::format("  stage {:<16} {:>8.0f} ms\n", stage.value("stage", ""), stage.value("duration_ms", 0.0));
+  }
+  for (const auto& s : shown["sherds"]) {
+    const auto& m = s["measurements"];
+    std::cout << fmt::format("  sherd {}  {} points  axis {}  rim Ø {}  rim {}  wall {}\n", s.value("sherd_id", ""),
+                             s.value("points", 0), s["axis"].value("found", false) ? "found" : "not found",
+                             fixed(m["rim_diameter_mm"], "mm"), fixed(m["rim_percent"], "%"),
+                             fixed(m["wall_thickness_mm"]["mean"], "mm"));
+  }
+  return 0;
+}
+
+int cmd_process(const Options& options, const std::vector<std::string>& files, const std::string& out_dir,
+                const std::string& units, const std::string& background) {
+  auto config = sherd::config::load_station_config(options.config_file);
+  config.paths.output_dir = std::filesystem::absolute(out_dir);
+  std::filesystem::create_directories(config.paths.output_dir);
+  auto store = std::make_shared<sherd::db::Store>(config.paths.output_dir / "sherdscan.db");
+
+  // Offline there is no daemon log: lines go to the terminal, a log file and the events table.
+  std::vector<spdlog::sink_ptr> sinks{
+      std::make_shared<spdlog::sinks::basic_file_sink_mt>((config.paths.output_dir / "sherdctl.log").string()),
+      sherd::db::make_event_sink(store)};
+  spdlog::set_default_logger(std::make_shared<spdlog::logger>("sherdctl", sinks.begin(), sinks.end()));
+
+  // Files are not on the station's plate: no scanning volume; the background only if asked for.
+  auto params = sherd::station::segmentation_params(config.segmentation);
+  params.volume_radius_mm = 0.0;
+  params.background = background == "black"   ? sherd::segmentation::BackgroundColour::Black
+                      : background == "white" ? sherd::segmentation::BackgroundColour::White
+                                              : sherd::segmentation::BackgroundColour::None;
+  const auto file_units = units == "m" ? sherd::io::Units::Metres : sherd::io::Units::Millimetres;
+
+  int failures = 0;
+  for (const auto& file : files) {
+    const auto scan_id = store->create_scan("process", 0, {{"file", file}, {"units", units}, {"background", background}},
+                                            config.paths.output_dir.string());
+    sherd::db::ScanLogScope scope(scan_id);
+    try {
+      store->set_scan_state(scan_id, sherd::db::ScanState::Processing);
+      const auto model = sherd::io::read_model(file, file_units);
+      sherd::station::Pipeline pipeline(config, *store, [](const json& e) {
+        if (e.value("event", "") == "sherd" && !e.value("axis_found", false)) {
+          std::cerr << fmt::format("  sherd {}: no axis: {}\n", e.value("sherd_id", ""), e.value("reason", ""));
+        }
+      });
+      const auto outcome = pipeline.process_model(scan_id, model, params, file);
+      store->set_scan_state(scan_id, sherd::db::ScanState::Done);
+      std::cerr << fmt::format("{}: {} sherd(s) → {}\n", file, outcome.sherds.size(), outcome.dir.string());
+      for (const auto& s : outcome.sherds) std::cout << s.plate.string() << '\n';
+    } catch (const std::exception& e) {
+      ++failures;
+      store->set_scan_state(scan_id, sherd::db::ScanState::Failed, e.what());
+      std::cerr << "sherdctl: " << e.what() << '\n';
+    }
+  }
+  return failures == 0 ? 0 : 1;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"sherdctl — operate the sherdscan station (through sherdd) or process files offline"};
+  app.require_subcommand(1);
+  Options options;
+  app.add_option("-c,--config", options.config_file, "station configuration (for the socket path and processing settings)")
+      ->capture_default_str();
+  app.add_option("--socket", options.socket, "sherdd's control socket (default: from the config; env SHERD_SOCKET)");
+  app.add_flag("--json", options.as_json, "print machine-readable JSON instead of text");
+
+  auto* scan = app.add_subcommand("scan", "press scan: acquire and process one scan; prints the plates' paths");
+  app.add_subcommand("status", "state of the station: devices, job in hand, queues");
+  int limit = 20;
+  auto* jobs = app.add_subcommand("jobs", "recent scans and their states");
+  jobs->add_option("-n,--limit", limit, "how many scans")->capture_default_str();
+  std::string scan_id;
+  bool wait = false;
+  auto* show = app.add_subcommand("show", "one scan: views, stages, sherds and measurements");
+  show->add_option("SCAN_ID", scan_id, "the scan's id (see `sherdctl jobs`)")->required();
+  show->add_flag("--wait", wait, "wait until the scan has finished first");
+  std::vector<std::string> files;
+  std::string out_dir, units = "mm", background = "none";
+  auto* process = app.add_subcommand("process", "run the pipeline offline on existing files (no daemon needed)");
+  process->add_option("FILE", files, "PLY, OBJ, OFF, STL or PCD: one sherd, a vessel or a tray")->required()->check(CLI::ExistingFile);
+  process->add_option("-o,--out", out_dir, "output directory (one folder per file)")->required();
+  process->add_option("--units", units, "units of the files")->check(CLI::IsMember({"mm", "m"}))->capture_default_str();
+  process->add_option("--background", background, "colour of a background to remove")
+      ->check(CLI::IsMember({"none", "black", "white"}))->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+
+  try {
+    if (*scan) return cmd_scan(options);
+    if (app.got_subcommand("status")) return cmd_status(options);
+    if (*jobs) return cmd_jobs(options, limit);
+    if (*show) return cmd_show(options, scan_id, wait);
+    if (*process) return cmd_process(options, files, out_dir, units, background);
+  } catch (const std::exception& e) {
+    std::cerr << "sherdctl: " << e.what() << '\n';
+    return 2;
+  }
+  return 0;
+}

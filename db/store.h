@@ -6,6 +6,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <chrono>
 #include <cstdint>
 #include <filesystem>
 #include <memory>
@@ -22,6 +23,10 @@ namespace sherd::db {
 enum class ScanState { Acquiring, Acquired, Processing, Done, Failed };
 const char* to_string(ScanState state);
 ScanState scan_state_from_string(const std::string& text);  // throws std::invalid_argument
+
+// The timestamp format of every *_at / time column: ISO 8601 UTC with milliseconds,
+// "2024-05-01T12:34:56.789Z" (sorts as text in time order).
+std::string to_iso_utc(std::chrono::system_clock::time_point time);
 
 struct ScanRecord {
   std::string id;
@@ -85,6 +90,8 @@ class Store {
                        const std::string& unit, std::optional<double> sd = std::nullopt);
   void add_artifact(const std::string& scan_id, const std::string& sherd_id,
                     const std::string& kind, const std::string& path);
+  // A sherd id "" marks a scan-level record (e.g. scan.json). artifacts(): (kind, path) pairs in
+  // the order they were added.
   std::vector<std::pair<std::string, std::string>> artifacts(const std::string& scan_id) const;
 
   // Stage timings and figures ("acquisition", "registration", "segmentation", "axis", …).
@@ -95,7 +102,7 @@ class Store {
   // Log events (written by the spdlog sink).
   void add_event(const std::string& time, const std::string& scan_id, const std::string& level,
                  const std::string& logger, const std::string& message);
-  std::int64_t event_count(const std::string& scan_id) const;
+  std::int64_t event_count(const std::string& scan_id) const;  // "" counts lines outside scans
 
  private:
   mutable std::mutex mutex_;

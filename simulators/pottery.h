@@ -1,6 +1,39 @@
 // A synthetic pottery world with ground truth: wheel-made vessels from profile families, broken
 // into sherds with irregular fracture edges, placed at known poses in a holding frame or on the
 // turntable plate. Deterministic from a seed. Millimetres, world = turntable frame (z up).
+//
+// Scenes: a plate (disk, radius 150 mm, top at z = 0) in the background colour, plus
+//   Frame  — sherds standing on an edge in a low holding frame (plinths in the background colour)
+//            on a ring of radius 95 mm, faces turned radially, so that the turning plate shows
+//            both faces to a scanner looking from the side;
+//   Plate  — sherds lying on the plate, outer face up or down, not touching;
+//   Vessel — one complete vessel standing near the plate centre;
+//   Empty  — the plate and (when sherds > 0) the empty frame.
+//
+// truth.json (schema "sherdscan.truth/1"), the contract read by end-to-end tests and benchmarks:
+//   schema, seed, scene ("frame"|"plate"|"vessel"|"empty"), background ("black"|"white"),
+//   units: "mm", angles in degrees,
+//   plate: {radius_mm, top_z_mm, colour: [r, g, b]}   (colour of plate and frame: the background)
+//   sherds: [ one per sherd (or the vessel), in placement order:
+//     id            "s01", …  (label k in SimulatedScanner::last_labels() is sherds[k-1])
+//     family        bowl | plate | beaker | jar | amphora
+//     complete      true for a whole vessel
+//     has_rim, has_base   the piece keeps the rim (with its lip) / the base angle
+//     axis: {point_mm, direction}   world frame; direction unit, from base towards rim; the point
+//                   is the axis point nearest to centroid_mm (compare axes as lines, not points)
+//     centroid_mm   mean of the piece's mesh vertices, world frame
+//     bbox_mm       [[xmin, ymin, zmin], [xmax, ymax, zmax]], world frame
+//     rim_diameter_mm   outer diameter at the top of the outer profile, where the outer wall
+//                   meets the lip (2 × profile.outer's last r); null without rim
+//     rim_percent   preserved rim arc of this jagged piece / 360 × 100; null without rim
+//     wall_thickness_mm  the wall thickness (inner wall = outer wall offset by it)
+//     arc_deg       angular extent of the piece about its axis (max θ − min θ of its vertices)
+//     height_mm     preserved height along the axis (max z − min z in the sherd frame)
+//     preserved_z_mm  [zmin, zmax] of the piece in the sherd frame (z = 0 at the vessel's base)
+//     profile: {outer, inner}  the vessel's [[r, z], …] in the sherd frame, from the axis at the
+//                   base (r = 0) to the rim; the rounded lip (≈ half an ellipse, height ≈ 0.35 ×
+//                   wall thickness) joins their last points
+//   ]
 #pragma once
 
 #include "core/types.h"
@@ -18,6 +51,16 @@ namespace sherd::sim {
 
 enum class SceneKind { Frame, Plate, Vessel, Empty };
 enum class Background { Black, White };
+
+inline constexpr double kPlateRadiusMm = 150.0;
+inline constexpr int kMaxSherds = 10;  // what a 300 mm plate holds without overlaps
+
+const char* to_string(SceneKind kind);
+const char* to_string(Background background);
+// Parse "frame"|"plate"|"vessel"|"empty" and "black"|"white"; InputError otherwise.
+SceneKind scene_kind_from_string(const std::string& name);
+Background background_from_string(const std::string& name);
+Rgb8 background_colour(Background background);
 
 struct SceneSpec {
   std::uint64_t seed = 42;
@@ -42,6 +85,9 @@ struct SherdTruth {
   double height_mm = 0.0;                 // preserved height along the axis
   // Vessel profile in the sherd frame (r, z) in mm, z from the base (z = 0) to the rim.
   std::vector<std::array<double, 2>> outer_profile, inner_profile;
+  Vec3d centroid = Vec3d::Zero();               // mean of the piece's vertices, world frame
+  Box3 bbox;                                    // world frame
+  std::array<double, 2> preserved_z_mm{0, 0};   // z range of the piece in the sherd frame
 };
 
 // A rigid body of the scene. Objects `on_plate` turn with the turntable; others (the table
@@ -59,7 +105,11 @@ struct Scene {
   std::vector<SherdTruth> truth;
 };
 
+// Throws InputError for a sherd count outside 0…kMaxSherds.
 Scene make_scene(const SceneSpec& spec);
+
+// All objects merged into one mesh (world frame at turntable angle 0).
+Mesh merged_mesh(const Scene& scene);
 
 nlohmann::json truth_to_json(const Scene& scene);
 

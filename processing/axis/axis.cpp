@@ -1,0 +1,335 @@
+// Axis of rotation from normal lines. Every normal line of a surface of revolution meets the axis.
+// With Plücker coordinates (n, p×n) of a normal line and (a, ā) of the axis, "meets" is the linear
+// condition a·(p×n) + ā·n = 0 (Pottmann & Wallner, Computational Line Geometry). Minimising the sum
+// of squares with |a| = 1 is a 6×6 quadratic form; ā is eliminated in closed form, leaving a 3×3
+// eigenproblem for a. That linear fit is the RANSAC hypothesis and the start of a Levenberg-Marquardt
+// refinement (Eigen) of the 4-DOF line against the true line-to-line distances.
+#include "processing/axis/axis.h"
+
+#include "core/errors.h"
+
+#include <Eigen/Eigenvalues>
+#include <unsupported/Eigen/NonLinearOptimization>
+#include <unsupported/Eigen/NumericalDiff>
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <optional>
+#include <random>
+
+namespace sherd::axis {
+namespace {
+
+constexpr double kDegToRad = M_PI / 180.0;
+
+struct NormalLine {
+  Vec3d point;   // centred on the sherd's centroid
+  Vec3d normal;  // unit
+};
+
+struct Line {
+  Vec3d point;      // any point on the line
+  Vec3d direction;  // unit
+};
+
+// Any unit vector perpendicular to `v` (unit).
+Vec3d any_perpendicular(const Vec3d& v) {
+  const Vec3d helper = std::abs(v.x()) < 0.9 ? Vec3d::UnitX() : Vec3d::UnitY();
+  return v.cross(helper).normalized();
+}
+
+// Signed distance between a normal line and the axis, or nullopt when they are too close to
+// parallel for that distance to mean anything (see Params::min_normal_axis_angle_deg).
+std::optional<double> line_distance(const NormalLine& l, const Line& axis, double min_sin) {
+  const Vec3d common = axis.direction.cross(l.normal);
+  const double sin_angle = common.norm();
+  if (sin_angle < min_sin) return std::nullopt;
+  return (l.point - axis.point).dot(common) / sin_angle;
+}
+
+// Linear line-complex fit of the axis to lines[indices]; nullopt if the system is degenerate.
+std::optional<Line> fit_line_complex(const std::vector<NormalLine>& lines,
+                                     const std::vector<std::uint32_t>& indices, double scale) {
+  Eigen::Matrix3d mm = Eigen::Matrix3d::Zero(), mn = Eigen::Matrix3d::Zero(),
+                  nn = Eigen::Matrix3d::Zero();
+  for (auto i : indices) {
+    // Positions scaled to ~unit size so that moments and directions weigh alike.
+    const Vec3d moment = (lines[i].point / scale).cross(lines[i].normal);
+    const Vec3d& n = lines[i].normal;
+    mm += moment * moment.transpose();
+    mn += moment * n.transpose();
+    nn += n * n.transpose();
+  }
+  // Pseudo-inverse of Σ n nᵀ: for a cylinder all normals are perpendicular to the axis and the
+  // matrix is singular; the missing component of ā is the complex's pitch, which does not move
+  // the axis line a × ā.
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> nn_eig(nn);
+  const double cutoff = 1e-9 * std::max(nn_eig.eigenvalues().maxCoeff(), 1e-300);
+  Eigen::Vector3d inverse_values;
+  for (int k = 0; k < 3; ++k) {
+    const double v = nn_eig.eigenvalues()[k];
+    inverse_values[k] = v > cutoff ? 1.0 / v : 0.0;
+  }
+  const Eigen::Matrix3d nn_pinv =
+      nn_eig.eigenvectors() * inverse_values.asDiagonal() * nn_eig.eigenvectors().transpose();
+  const Eigen::Matrix3d reduced = mm - mn * nn_pinv * mn.transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> reduced_eig(reduced);
+  const Vec3d direction = reduced_eig.eigenvectors().col(0);  // smallest eigenvalue first
+  if (!direction.allFinite()) return std::nullopt;
+  const Vec3d moment_bar = -nn_pinv * mn.transpose() * direction;
+  return Line{direction.cross(moment_bar) * scale, direction};
+}
+
+// Least squares of the line-to-line distances over the 4 DOF of the axis: two tilts of the
+// direction and two shifts of the point, both in the plane perpendicular to the start direction.
+struct AxisDistanceFunctor {
+  using Scalar = double;
+  using InputType = Eigen::VectorXd;
+  using ValueType = Eigen::VectorXd;
+  using JacobianType = Eigen::MatrixXd;
+  enum { InputsAtCompileTime = Eigen::Dynamic, ValuesAtCompileTime = Eigen::Dynamic };
+
+  const std::vector<NormalLine>* lines = nullptr;
+  const std::vector<std::uint32_t>* indices = nullptr;
+  Line start;
+  Vec3d e1, e2;
+
+  int inputs() const { return 4; }
+  int values() const { return static_cast<int>(indices->size()); }
+
+  Line line_at(const Eigen::VectorXd& x) const {
+    return {start.point + x[2] * e1 + x[3] * e2,
+            (start.direction + x[0] * e1 + x[1] * e2).normalized()};
+  }
+  int operator()(const Eigen::VectorXd& x, Eigen::VectorXd& residuals) const {
+    const Line axis = line_at(x);
+    for (std::size_t k = 0; k < indices->size(); ++k) {
+      const NormalLine& l = (*lines)[(*indices)[k]];
+      const Vec3d common = axis.direction.cross(l.normal);
+      // Inliers were chosen away from parallel, so the norm is bounded away from zero.
+      residuals[static_cast<Eigen::Index>(k)] =
+          (l.point - axis.point).dot(common) / std::max(common.norm(), 1e-6);
+    }
+    return 0;
+  }
+};
+
+Line refine(const std::vector<NormalLine>& lines, const std::vector<std::uint32_t>& indices,
+            const Line& start) {
+  AxisDistanceFunctor functor;
+  functor.lines = &lines;
+  functor.indices = &indices;
+  functor.start = start;
+  functor.e1 = any_perpendicular(start.direction);
+  functor.e2 = start.direction.cross(functor.e1);
+  Eigen::NumericalDiff<AxisDistanceFunctor> numeric(functor);
+  Eigen::LevenbergMarquardt<Eigen::NumericalDiff<AxisDistanceFunctor>> solver(numeric);
+  solver.parameters.maxfev = 200;
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(4);
+  solver.minimize(x);
+  return functor.line_at(x);
+}
+
+struct Scored {
+  std::vector<std::uint32_t> inliers;
+  double rms = 0.0;  // of the inliers' distances
+};
+
+Scored score(const std::vector<NormalLine>& lines, const Line& axis, double threshold,
+             double min_sin) {
+  Scored s;
+  double sum_sq = 0.0;
+  for (std::uint32_t i = 0; i < lines.size(); ++i) {
+    const auto d = line_distance(lines[i], axis, min_sin);
+    if (d && std::abs(*d) <= threshold) {
+      s.inliers.push_back(i);
+      sum_sq += *d * *d;
+    }
+  }
+  if (!s.inliers.empty()) s.rms = std::sqrt(sum_sq / s.inliers.size());
+  return s;
+}
+
+// MSAC cost: truncated squared distance, so that a hypothesis is judged by how well its inliers
+// fit, not only by how many there are.
+double msac_cost(const std::vector<NormalLine>& lines, const Line& axis, double threshold,
+                 double min_sin) {
+  const double cap = threshold * threshold;
+  double cost = 0.0;
+  for (const auto& l : lines) {
+    const auto d = line_distance(l, axis, min_sin);
+    cost += d ? std::min(*d * *d, cap) : cap;
+  }
+  return cost;
+}
+
+// RMS distance of the lines to the point they pass closest to in the least-squares sense.
+double common_point_rms(const std::vector<NormalLine>& lines,
+                        const std::vector<std::uint32_t>& indices) {
+  Eigen::Matrix3d lhs = Eigen::Matrix3d::Zero();
+  Vec3d rhs = Vec3d::Zero();
+  for (auto i : indices) {
+    const Eigen::Matrix3d across =
+        Eigen::Matrix3d::Identity() - lines[i].normal * lines[i].normal.transpose();
+    lhs += across;
+    rhs += across * lines[i].point;
+  }
+  const Vec3d centre = lhs.ldlt().solve(rhs);
+  double sum_sq = 0.0;
+  for (auto i : indices) {
+    sum_sq += (lines[i].point - centre).cross(lines[i].normal).squaredNorm();
+  }
+  return std::sqrt(sum_sq / indices.size());
+}
+
+double angle_between_axes_deg(const Vec3d& a, const Vec3d& b) {
+  return std::acos(std::min(1.0, std::abs(a.dot(b)))) / kDegToRad;
+}
+
+double point_to_line_distance(const Vec3d& p, const Line& l) {
+  return (p - l.point).cross(l.direction).norm();
+}
+
+AxisEstimate not_found(AxisEstimate estimate, std::string reason) {
+  estimate.found = false;
+  estimate.reason = std::move(reason);
+  return estimate;
+}
+
+}  // namespace
+
+AxisEstimate estimate_axis(const Cloud& sherd, const Params& params) {
+  AxisEstimate estimate;
+  estimate.method = "normal-line-complex+ransac+lm";
+  if (!sherd.has_normals()) {
+    return not_found(estimate, "no normals: the axis is estimated from surface normals; "
+                               "compute normals before axis estimation");
+  }
+  for (std::size_t i = 0; i < sherd.size(); ++i) {
+    if (!sherd.points[i].allFinite() || !sherd.normals[i].allFinite()) {
+      throw InputError(fmt::format(
+          "axis estimation: point {} of {} has a non-finite coordinate or normal; remove invalid "
+          "points before processing",
+          i, sherd.size()));
+    }
+  }
+  constexpr std::size_t kMinLines = 50;
+  if (sherd.size() < kMinLines) {
+    return not_found(estimate, fmt::format("too few points: {} (at least {} with normals needed)",
+                                           sherd.size(), kMinLines));
+  }
+
+  std::mt19937_64 rng(params.seed);
+  std::vector<std::uint32_t> chosen(sherd.size());
+  std::iota(chosen.begin(), chosen.end(), 0u);
+  if (chosen.size() > params.max_lines) {
+    std::shuffle(chosen.begin(), chosen.end(), rng);
+    chosen.resize(params.max_lines);
+  }
+  Vec3d centroid = Vec3d::Zero();
+  for (auto i : chosen) centroid += sherd.points[i].cast<double>();
+  centroid /= static_cast<double>(chosen.size());
+  std::vector<NormalLine> lines;
+  lines.reserve(chosen.size());
+  double sum_sq_radius = 0.0;
+  for (auto i : chosen) {
+    const Vec3d n = sherd.normals[i].cast<double>();
+    if (n.norm() < 0.5) continue;  // an unset (zero) normal carries no direction
+    lines.push_back({sherd.points[i].cast<double>() - centroid, n.normalized()});
+    sum_sq_radius += lines.back().point.squaredNorm();
+  }
+  if (lines.size() < kMinLines) {
+    return not_found(estimate, fmt::format("too few normals: {} valid (at least {} needed)",
+                                           lines.size(), kMinLines));
+  }
+  const double scale = std::max(std::sqrt(sum_sq_radius / lines.size()), 1e-6);
+
+  // Too flat: all normals (up to sign) along one direction.
+  Eigen::Matrix3d normal_scatter = Eigen::Matrix3d::Zero();
+  for (const auto& l : lines) normal_scatter += l.normal * l.normal.transpose();
+  const double along_share =
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(normal_scatter).eigenvalues()[2] /
+      static_cast<double>(lines.size());
+  const double spread_deg = std::asin(std::sqrt(std::max(0.0, 1.0 - along_share))) / kDegToRad;
+  if (spread_deg < params.flat_normal_spread_deg) {
+    return not_found(estimate, fmt::format("too flat: normals spread only {:.1f} deg around one "
+                                           "direction (no surface of revolution)",
+                                           spread_deg));
+  }
+
+  const double min_sin = std::sin(params.min_normal_axis_angle_deg * kDegToRad);
+  const double threshold = params.inlier_distance_mm;
+  constexpr std::size_t kSampleSize = 6;  // 5 lines fix a linear complex; one more for noise
+  std::uniform_int_distribution<std::uint32_t> pick(0, static_cast<std::uint32_t>(lines.size() - 1));
+  std::optional<Line> best;
+  double best_cost = std::numeric_limits<double>::infinity();
+  std::vector<std::uint32_t> sample(kSampleSize);
+  for (int it = 0; it < params.ransac_iterations; ++it) {
+    for (auto& s : sample) s = pick(rng);
+    const auto hypothesis = fit_line_complex(lines, sample, scale);
+    if (!hypothesis) continue;
+    const double cost = msac_cost(lines, *hypothesis, threshold, min_sin);
+    if (cost < best_cost) {
+      best_cost = cost;
+      best = hypothesis;
+    }
+  }
+  if (!best) return not_found(estimate, "not rotational: no line complex fits the normals");
+
+  // Refit on the inliers, refine, and once more with the inliers of the refined axis.
+  Scored scored = score(lines, *best, threshold, min_sin);
+  Line axis = *best;
+  for (int round = 0; round < 2 && scored.inliers.size() >= kMinLines; ++round) {
+    if (round == 0) {
+      if (auto linear = fit_line_complex(lines, scored.inliers, scale)) axis = *linear;
+    }
+    axis = refine(lines, scored.inliers, axis);
+    scored = score(lines, axis, threshold, min_sin);
+  }
+  estimate.inlier_share = static_cast<double>(scored.inliers.size()) / lines.size();
+  estimate.rms_mm = scored.rms;
+  estimate.direction = axis.direction;
+  // The axis point closest to the centroid: the centroid is the origin of the centred lines.
+  estimate.point = centroid + axis.point - axis.point.dot(axis.direction) * axis.direction;
+  if (estimate.inlier_share < params.min_inlier_share || scored.inliers.size() < kMinLines) {
+    return not_found(estimate, fmt::format("not rotational: only {:.0f}% of the normal lines meet "
+                                           "one axis (at least {:.0f}% needed)",
+                                           100.0 * estimate.inlier_share,
+                                           100.0 * params.min_inlier_share));
+  }
+  const double sphere_rms = common_point_rms(lines, scored.inliers);
+  if (sphere_rms < params.sphere_rms_ratio * scored.rms) {
+    return not_found(estimate, fmt::format("not rotational-unique: the normals meet in one point "
+                                           "(RMS {:.2f} mm vs {:.2f} mm to the axis), sphere-like, "
+                                           "every line through it fits",
+                                           sphere_rms, scored.rms));
+  }
+
+  // Bootstrap over the inliers: spread of the refined axis under resampling.
+  const Line final_axis{axis.point - axis.point.dot(axis.direction) * axis.direction,
+                        axis.direction};
+  std::uniform_int_distribution<std::size_t> pick_inlier(0, scored.inliers.size() - 1);
+  std::vector<std::uint32_t> resample(scored.inliers.size());
+  double angle_sq = 0.0, offset_sq = 0.0;
+  for (int b = 0; b < params.bootstrap_resamples; ++b) {
+    for (auto& r : resample) r = scored.inliers[pick_inlier(rng)];
+    const Line replica = refine(lines, resample, final_axis);
+    angle_sq += std::pow(angle_between_axes_deg(replica.direction, final_axis.direction), 2);
+    offset_sq += std::pow(point_to_line_distance(final_axis.point, replica), 2);
+  }
+  if (params.bootstrap_resamples > 0) {
+    estimate.angle_sd_deg = std::sqrt(angle_sq / params.bootstrap_resamples);
+    estimate.offset_sd_mm = std::sqrt(offset_sq / params.bootstrap_resamples);
+  }
+  if (estimate.angle_sd_deg > params.max_angle_sd_deg) {
+    return not_found(estimate, fmt::format("axis poorly constrained: direction varies by {:.1f} deg "
+                                           "(sd) under resampling (at most {:.1f} accepted)",
+                                           estimate.angle_sd_deg, params.max_angle_sd_deg));
+  }
+  estimate.found = true;
+  return estimate;
+}
+
+}  // namespace sherd::axis

@@ -27,6 +27,17 @@ struct Params {
   double inlier_distance_mm = 2.0;  // normal line to axis distance
   double min_inlier_share = 0.5;
   std::uint64_t seed = 7;
+  // A normal within this angle of the axis meets it only far away (flat lip, base underside,
+  // horizontal break): its line distance says nothing about the axis position, so it is no inlier.
+  double min_normal_axis_angle_deg = 10.0;
+  // Normals that all lie within this RMS angle of one direction: a flat object, no axis.
+  double flat_normal_spread_deg = 8.0;
+  // A point fits the normal lines nearly as well as the axis (ratio of RMS distances below this):
+  // sphere-like, every line through that point is an equally good axis.
+  double sphere_rms_ratio = 2.0;
+  int bootstrap_resamples = 30;
+  double max_angle_sd_deg = 5.0;  // beyond: the axis is too poorly constrained to report
+  std::size_t max_lines = 20000;  // larger clouds are subsampled (deterministically) first
 };
 
 // Needs normals (sherd.has_normals()).

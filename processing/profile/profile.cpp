@@ -1,0 +1,567 @@
+// Orientation, section profile and measurements of one sherd around a known axis.
+//
+// Everything is done in cylindrical coordinates about the axis: height h along it, radius r and
+// azimuth phi around it. A surface of revolution maps every azimuth onto the same (r, h) curve,
+// so a thin slab of points around one azimuth is the profile.
+#include "processing/profile/profile.h"
+
+#include "core/errors.h"
+
+#include <fmt/format.h>
+#include <pcl/kdtree/kdtree_flann.h>
+#include <pcl/point_cloud.h>
+#include <pcl/point_types.h>
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <limits>
+#include <queue>
+
+namespace sherd::profile {
+namespace {
+
+constexpr double kDegToRad = M_PI / 180.0;
+constexpr double kTwoPi = 2.0 * M_PI;
+
+struct CylPoint {
+  double r, h, phi;
+  double n_r, n_h;  // normal components along the point's radial direction and the axis
+  double n_phi;     // tangential component (large on radial fracture faces)
+};
+
+struct Frame {
+  Vec3d origin, x, y, z;
+};
+
+Frame frame_about(const Vec3d& origin, const Vec3d& z_axis) {
+  const Vec3d z = z_axis.normalized();
+  const Vec3d helper = std::abs(z.x()) < 0.9 ? Vec3d::UnitX() : Vec3d::UnitY();
+  const Vec3d x = z.cross(helper).normalized();
+  return {origin, x, z.cross(x), z};
+}
+
+std::vector<CylPoint> cylindrical(const Cloud& cloud, const Frame& f) {
+  std::vector<CylPoint> out;
+  out.reserve(cloud.size());
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    const Vec3d d = cloud.points[i].cast<double>() - f.origin;
+    const Vec3d n = cloud.normals[i].cast<double>();
+    const double px = d.dot(f.x), py = d.dot(f.y);
+    const double r = std::hypot(px, py);
+    const double phi = std::atan2(py, px);
+    const Vec3d radial = r > 1e-9 ? Vec3d((px * f.x + py * f.y) / r) : f.x;
+    const Vec3d tangential = f.z.cross(radial);
+    out.push_back({r, d.dot(f.z), phi, n.dot(radial), n.dot(f.z), n.dot(tangential)});
+  }
+  return out;
+}
+
+double wrap_angle(double a) {  // to (-pi, pi]
+  a = std::fmod(a + M_PI, kTwoPi);
+  if (a < 0) a += kTwoPi;
+  return a - M_PI;
+}
+
+// How much of the circle a set of azimuths covers. Azimuths are binned; empty runs shorter than
+// `fill_gap_mm` at radius `radius` are scan holes and count as covered; the covered extent is
+// measured from the first to the last azimuth of each covered run (no bin quantisation).
+struct Coverage {
+  double degrees = 0.0;
+  double middle_rad = 0.0;  // middle of the covered part: opposite the largest empty run
+};
+
+Coverage angular_coverage(const std::vector<double>& phis, double radius, double fill_gap_mm = 5.0) {
+  Coverage c;
+  if (phis.empty()) return c;
+  radius = std::max(radius, 1.0);
+  const double bin = std::max(1.0 * kDegToRad, 1.5 / radius);
+  const int bins = static_cast<int>(std::ceil(kTwoPi / bin));
+  std::vector<double> lo(bins, std::numeric_limits<double>::infinity());
+  std::vector<double> hi(bins, -std::numeric_limits<double>::infinity());
+  for (double phi : phis) {
+    const double a = wrap_angle(phi) + M_PI;  // [0, 2pi)
+    const int b = std::min(bins - 1, static_cast<int>(a / bin));
+    lo[b] = std::min(lo[b], a);
+    hi[b] = std::max(hi[b], a);
+  }
+  auto occupied = [&](int b) { return std::isfinite(lo[((b % bins) + bins) % bins]); };
+  // Start just after an empty bin, so that runs do not wrap around the start.
+  int start = -1;
+  for (int b = 0; b < bins; ++b) {
+    if (!occupied(b)) {
+      start = b + 1;
+      break;
+    }
+  }
+  if (start < 0) return {360.0, 0.0};
+  const int fill_bins = std::max(3, static_cast<int>(std::ceil(fill_gap_mm / (radius * bin))));
+  // Walk once around: covered runs (holes filled) and the largest true gap.
+  double covered = 0.0;
+  int largest_gap = 0, largest_gap_end = start;
+  int b = start;
+  const int stop = start + bins;
+  while (b < stop) {
+    if (!occupied(b)) {
+      int e = b;
+      while (e < stop && !occupied(e)) ++e;
+      if (e - b > largest_gap) {
+        largest_gap = e - b;
+        largest_gap_end = e;
+      }
+      b = e;
+      continue;
+    }
+    // A covered run: occupied bins, bridging gaps shorter than fill_bins.
+    const int first = b;
+    int last = b;
+    int e = b + 1;
+    while (e < stop) {
+      if (occupied(e)) {
+        last = e++;
+        continue;
+      }
+      int g = e;
+      while (g < stop && !occupied(g)) ++g;
+      if (g - e >= fill_bins || g >= stop) break;
+      e = g;
+    }
+    const double first_angle = lo[first % bins] + (first >= bins ? kTwoPi : 0.0);
+    const double last_angle = hi[last % bins] + (last >= bins ? kTwoPi : 0.0);
+    covered += last_angle - first_angle;
+    b = last + 1;
+  }
+  c.degrees = std::min(360.0, covered / kDegToRad);
+  // The covered part lies between the end of the largest gap and its start (one turn later).
+  const double covered_from = largest_gap_end * bin;
+  const double covered_to = (largest_gap_end - largest_gap + bins) * bin;
+  c.middle_rad = wrap_angle(0.5 * (covered_from + covered_to) - M_PI);
+  return c;
+}
+
+double median_radius(const std::vector<CylPoint>& pts) {
+  std::vector<double> r;
+  r.reserve(pts.size());
+  for (const auto& p : pts) r.push_back(p.r);
+  if (r.empty()) return 1.0;
+  std::nth_element(r.begin(), r.begin() + r.size() / 2, r.end());
+  return r[r.size() / 2];
+}
+
+// What one axial end of the sherd looks like.
+struct EndShape {
+  double coverage_share = 0.0;  // arc of the end band / arc of the sherd
+  double mean_radius = 0.0;
+  bool reaches_axis = false;    // closes towards the axis: a base
+  double facing_away_share = 0.0;  // normals pointing out of this end along the axis
+};
+
+EndShape end_shape(const std::vector<CylPoint>& pts, bool top, double band_mm, double sherd_arc_deg,
+                   double max_radius) {
+  double extreme = top ? -std::numeric_limits<double>::infinity() : std::numeric_limits<double>::infinity();
+  for (const auto& p : pts) extreme = top ? std::max(extreme, p.h) : std::min(extreme, p.h);
+  std::vector<double> phis;
+  std::vector<CylPoint> band;
+  for (const auto& p : pts) {
+    if (std::abs(p.h - extreme) <= band_mm) {
+      phis.push_back(p.phi);
+      band.push_back(p);
+    }
+  }
+  EndShape s;
+  if (band.empty()) return s;
+  const double radius = median_radius(band);
+  s.coverage_share = angular_coverage(phis, radius).degrees / std::max(sherd_arc_deg, 1e-9);
+  double min_r = std::numeric_limits<double>::infinity(), sum_r = 0.0;
+  int away = 0;
+  for (const auto& p : band) {
+    min_r = std::min(min_r, p.r);
+    sum_r += p.r;
+    if ((top ? p.n_h : -p.n_h) > 0.9) ++away;
+  }
+  s.mean_radius = sum_r / band.size();
+  s.reaches_axis = min_r < 0.15 * max_radius;
+  s.facing_away_share = static_cast<double>(away) / band.size();
+  return s;
+}
+
+// Orientation rule, in order of strength:
+//  1. a base closes towards the axis: the end that reaches the axis is the base;
+//  2. a rim is a lip: the boundary is perpendicular to the axis across the whole preserved arc, so
+//     the end whose extreme band covers (nearly) the sherd's arc is the rim, a break covers little;
+//  3. otherwise (a body sherd): the wider end is taken as the rim — most vessels open upwards —
+//     and the orientation is marked uncertain.
+struct Orientation {
+  bool flip = false;  // the rim is at the provisional -z end
+  bool certain = false;
+  bool has_rim = false;
+  bool has_base = false;
+};
+
+Orientation orient(const std::vector<CylPoint>& pts, double band_mm, double arc_deg) {
+  double max_r = 0.0;
+  for (const auto& p : pts) max_r = std::max(max_r, p.r);
+  const EndShape top = end_shape(pts, true, band_mm, arc_deg, max_r);
+  const EndShape bottom = end_shape(pts, false, band_mm, arc_deg, max_r);
+  constexpr double kLip = 0.7;
+  auto is_lip = [&](const EndShape& e) { return e.coverage_share >= kLip && !e.reaches_axis; };
+  Orientation o;
+  if (top.reaches_axis != bottom.reaches_axis) {
+    o.flip = top.reaches_axis;
+    o.certain = true;
+  } else if (is_lip(top) != is_lip(bottom)) {
+    o.flip = is_lip(bottom);
+    o.certain = true;
+  } else {
+    o.flip = bottom.mean_radius > top.mean_radius;
+  }
+  const EndShape& rim = o.flip ? bottom : top;
+  const EndShape& base = o.flip ? top : bottom;
+  o.has_rim = is_lip(rim);
+  // A base closes towards the axis, or ends in a flat underside facing away from the rim.
+  o.has_base = base.reaches_axis || (base.coverage_share >= kLip && base.facing_away_share > 0.3);
+  return o;
+}
+
+// The azimuth where the sherd's axial extent is largest (the best-preserved profile); among
+// nearly equal candidates the one nearest the middle of the arc, away from the side breaks.
+double section_azimuth(const std::vector<CylPoint>& pts, double half_width_rad, double arc_middle) {
+  const int bins = 720;
+  const double bin = kTwoPi / bins;
+  std::vector<double> lo(bins, std::numeric_limits<double>::infinity());
+  std::vector<double> hi(bins, -std::numeric_limits<double>::infinity());
+  for (const auto& p : pts) {
+    const int b = std::min(bins - 1, static_cast<int>((wrap_angle(p.phi) + M_PI) / bin));
+    lo[b] = std::min(lo[b], p.h);
+    hi[b] = std::max(hi[b], p.h);
+  }
+  const int reach = std::max(1, static_cast<int>(half_width_rad / bin));
+  std::vector<double> extent(bins, -1.0);
+  double best = -1.0;
+  for (int b = 0; b < bins; ++b) {
+    double l = std::numeric_limits<double>::infinity(), h = -l;
+    for (int k = -reach; k <= reach; ++k) {
+      const int j = ((b + k) % bins + bins) % bins;
+      l = std::min(l, lo[j]);
+      h = std::max(h, hi[j]);
+    }
+    if (h >= l) extent[b] = h - l;
+    best = std::max(best, extent[b]);
+  }
+  constexpr double kTieMm = 0.25;
+  double chosen = arc_middle, chosen_offset = std::numeric_limits<double>::infinity();
+  for (int b = 0; b < bins; ++b) {
+    if (extent[b] < best - kTieMm) continue;
+    const double centre = (b + 0.5) * bin - M_PI;
+    const double offset = std::abs(wrap_angle(centre - arc_middle));
+    if (offset < chosen_offset) {
+      chosen_offset = offset;
+      chosen = centre;
+    }
+  }
+  return chosen;
+}
+
+using Vec2 = Eigen::Vector2d;
+
+struct SectionPoint {
+  Vec2 rz;
+  Vec2 normal;  // unit, in the (r, z) half-plane
+};
+
+// Skin points have a partner on the opposite skin a wall thickness away, straight through the wall
+// along -normal. Lip and fracture faces look through the wall lengthwise: their partner (if any)
+// is far. Brute force: a section holds a few thousand points, and no library ray-casts into
+// unorganised points.
+std::vector<SectionPoint> keep_skin_points(const std::vector<SectionPoint>& section) {
+  std::vector<double> through(section.size(), std::numeric_limits<double>::infinity());
+  for (std::size_t i = 0; i < section.size(); ++i) {
+    const auto& a = section[i];
+    for (const auto& b : section) {
+      if (a.normal.dot(b.normal) > -0.7) continue;
+      const Vec2 v = b.rz - a.rz;
+      const double t = -v.dot(a.normal);
+      if (t < 0.3 || t >= through[i]) continue;
+      if ((v + t * a.normal).norm() <= std::max(0.5, 0.1 * t)) through[i] = t;
+    }
+  }
+  std::vector<double> finite;
+  for (double t : through) {
+    if (std::isfinite(t)) finite.push_back(t);
+  }
+  if (finite.empty()) return {};
+  std::nth_element(finite.begin(), finite.begin() + finite.size() / 2, finite.end());
+  const double limit = 2.0 * finite[finite.size() / 2] + 0.5;
+  std::vector<SectionPoint> kept;
+  for (std::size_t i = 0; i < section.size(); ++i) {
+    if (through[i] <= limit) kept.push_back(section[i]);
+  }
+  return kept;
+}
+
+// Which skin: the normal line of a surface of revolution meets the axis in front of an inner-skin
+// point (normal towards the axis, n_r < 0) and behind an outer-skin point. Where the wall is near
+// horizontal (|n_r| small) the side is decided by n_z: an upward face is the inside (a floor, the
+// top of a flange), a downward face the outside (an underside). A near-horizontal closed shoulder
+// is the known exception of this first rule.
+bool is_outer(const Vec2& n) { return n.x() > 0.2 || (std::abs(n.x()) <= 0.2 && n.y() < 0.0); }
+
+// Geodesic distances over the graph of points closer than `link_mm`, from `source`.
+std::vector<double> geodesic_from(const std::vector<std::vector<std::pair<int, double>>>& graph,
+                                  int source) {
+  std::vector<double> dist(graph.size(), std::numeric_limits<double>::infinity());
+  using Item = std::pair<double, int>;
+  std::priority_queue<Item, std::vector<Item>, std::greater<>> queue;
+  dist[source] = 0.0;
+  queue.push({0.0, source});
+  while (!queue.empty()) {
+    const auto [d, u] = queue.top();
+    queue.pop();
+    if (d > dist[u]) continue;
+    for (const auto& [v, w] : graph[u]) {
+      if (d + w < dist[v]) {
+        dist[v] = d + w;
+        queue.push({dist[v], v});
+      }
+    }
+  }
+  return dist;
+}
+
+int farthest(const std::vector<double>& dist) {
+  int best = -1;
+  for (int i = 0; i < static_cast<int>(dist.size()); ++i) {
+    if (std::isfinite(dist[i]) && (best < 0 || dist[i] > dist[best])) best = i;
+  }
+  return best;
+}
+
+// One skin's points → an ordered polyline from the base end to the rim end. The points lie along a
+// curve, so the curve's two ends are found by a double sweep of geodesic distances (the farthest
+// point from anywhere is an end; the farthest from that the other end); points are then binned by
+// geodesic distance from the lower end and averaged, and the vertices smoothed.
+Polyline2 skin_polyline(const std::vector<Vec2>& pts) {
+  constexpr double kLinkMm = 2.0, kStepMm = 1.0;
+  if (pts.size() < 3) return {};
+  pcl::PointCloud<pcl::PointXYZ>::Ptr flat(new pcl::PointCloud<pcl::PointXYZ>);
+  for (const auto& p : pts) flat->push_back(pcl::PointXYZ(float(p.x()), float(p.y()), 0.0f));
+  pcl::KdTreeFLANN<pcl::PointXYZ> tree;
+  tree.setInputCloud(flat);
+  std::vector<std::vector<std::pair<int, double>>> graph(pts.size());
+  std::vector<int> found;
+  std::vector<float> sq;
+  for (int i = 0; i < static_cast<int>(pts.size()); ++i) {
+    tree.radiusSearch((*flat)[i], kLinkMm, found, sq);
+    for (std::size_t k = 0; k < found.size(); ++k) {
+      if (found[k] != i) graph[i].push_back({found[k], std::sqrt(double(sq[k]))});
+    }
+  }
+  // Sweep from the highest point: it belongs to the main piece of the curve.
+  int top = 0;
+  for (int i = 1; i < static_cast<int>(pts.size()); ++i) {
+    if (pts[i].y() > pts[top].y()) top = i;
+  }
+  const int end_a = farthest(geodesic_from(graph, top));
+  std::vector<double> from_a = geodesic_from(graph, end_a);
+  const int end_b = farthest(from_a);
+  const std::vector<double> s = pts[end_a].y() <= pts[end_b].y() ? from_a : geodesic_from(graph, end_b);
+
+  const double length = s[pts[end_a].y() <= pts[end_b].y() ? end_b : end_a];
+  const int bins = static_cast<int>(length / kStepMm) + 1;
+  std::vector<Vec2> sum(bins, Vec2::Zero());
+  std::vector<int> count(bins, 0);
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    if (!std::isfinite(s[i])) continue;
+    const int b = std::min(bins - 1, static_cast<int>(s[i] / kStepMm));
+    sum[b] += pts[i];
+    ++count[b];
+  }
+  std::vector<Vec2> vertices;
+  for (int b = 0; b < bins; ++b) {
+    if (count[b] > 0) vertices.push_back(sum[b] / count[b]);
+  }
+  Polyline2 out;
+  for (std::size_t k = 0; k < vertices.size(); ++k) {
+    // 3-tap moving average inside; the two ends stay where they are measured.
+    const Vec2 v = (k == 0 || k + 1 == vertices.size())
+                       ? vertices[k]
+                       : Vec2((vertices[k - 1] + 2.0 * vertices[k] + vertices[k + 1]) / 4.0);
+    out.push_back({v.x(), v.y()});
+  }
+  return out;
+}
+
+Vec2 as_vec(const std::array<double, 2>& a) { return {a[0], a[1]}; }
+
+// Distances from the outer curve's vertices to the inner curve, where the perpendicular foot lies
+// inside the inner curve (at the broken ends the nearest inner point is an end point, not across
+// the wall).
+WallThickness wall_thickness(const Polyline2& outer, const Polyline2& inner) {
+  WallThickness w;
+  if (outer.size() < 2 || inner.size() < 2) return w;
+  double sum = 0.0;
+  int n = 0;
+  w.min = std::numeric_limits<double>::infinity();
+  for (const auto& o : outer) {
+    const Vec2 p = as_vec(o);
+    double best = std::numeric_limits<double>::infinity();
+    bool interior = false;
+    for (std::size_t k = 0; k + 1 < inner.size(); ++k) {
+      const Vec2 a = as_vec(inner[k]), b = as_vec(inner[k + 1]);
+      const Vec2 ab = b - a;
+      const double t = std::clamp((p - a).dot(ab) / std::max(ab.squaredNorm(), 1e-12), 0.0, 1.0);
+      const double d = (a + t * ab - p).norm();
+      if (d < best) {
+        best = d;
+        interior = !((k == 0 && t == 0.0) || (k + 2 == inner.size() && t == 1.0));
+      }
+    }
+    if (!interior) continue;
+    w.min = std::min(w.min, best);
+    w.max = std::max(w.max, best);
+    sum += best;
+    ++n;
+  }
+  if (n == 0) return {};
+  w.mean = sum / n;
+  return w;
+}
+
+// Capacity: the solid of revolution under the inner curve, ∮ π r² dz over the closed loop
+// (inner curve up to the rim, across the mouth, down the axis); each segment is a frustum.
+double volume_under_inner_mm3(const Polyline2& inner) {
+  double v = 0.0;
+  for (std::size_t k = 0; k + 1 < inner.size(); ++k) {
+    const double r1 = inner[k][0], r2 = inner[k + 1][0];
+    v += M_PI / 3.0 * (r1 * r1 + r1 * r2 + r2 * r2) * (inner[k + 1][1] - inner[k][1]);
+  }
+  return std::abs(v);
+}
+
+}  // namespace
+
+Analysis analyse(const Cloud& sherd, const axis::AxisEstimate& axis, const Params& params) {
+  if (!axis.found) {
+    throw InputError(fmt::format("profile: the sherd has no axis ({}); a profile needs a found "
+                                 "axis, skip this sherd or estimate its axis first",
+                                 axis.reason));
+  }
+  if (!sherd.has_normals()) {
+    throw InputError("profile: the sherd has no normals; compute normals before profile analysis");
+  }
+  for (std::size_t i = 0; i < sherd.size(); ++i) {
+    if (!sherd.points[i].allFinite() || !sherd.normals[i].allFinite()) {
+      throw InputError(fmt::format("profile: point {} of {} has a non-finite coordinate or normal; "
+                                   "remove invalid points before processing",
+                                   i, sherd.size()));
+    }
+  }
+  if (sherd.size() < 50) {
+    throw ProcessingError(fmt::format("profile: only {} points in the sherd, at least 50 needed",
+                                      sherd.size()));
+  }
+
+  // Provisional frame: orientation first, then the final frame with z from base to rim.
+  Frame frame = frame_about(axis.point, axis.direction);
+  std::vector<CylPoint> pts = cylindrical(sherd, frame);
+  auto sherd_arc = [&] {
+    std::vector<double> phis;
+    for (const auto& p : pts) phis.push_back(p.phi);
+    return angular_coverage(phis, median_radius(pts));
+  };
+  Coverage arc = sherd_arc();
+  const Orientation orientation = orient(pts, params.rim_band_mm, arc.degrees);
+  if (orientation.flip) {
+    frame = frame_about(axis.point, -axis.direction);
+    pts = cylindrical(sherd, frame);
+    arc = sherd_arc();
+  }
+
+  Analysis result;
+  result.axis = axis;
+  result.axis.direction = frame.z;
+  result.rim_up_certain = orientation.certain;
+  result.has_rim = orientation.has_rim;
+  result.has_base = orientation.has_base;
+  result.arc_deg = arc.degrees;
+
+  const double half_width = params.section_half_width_deg * kDegToRad;
+  const double azimuth = section_azimuth(pts, half_width, arc.middle_rad);
+  result.profile.section_angle_rad = wrap_angle(azimuth - arc.middle_rad);
+  const Vec3d section_x = std::cos(azimuth) * frame.x + std::sin(azimuth) * frame.y;
+  result.sherd_to_world.linear().col(0) = section_x;
+  result.sherd_to_world.linear().col(1) = frame.z.cross(section_x);
+  result.sherd_to_world.linear().col(2) = frame.z;
+  result.sherd_to_world.translation() = frame.origin;
+
+  // The section slab, without radial fracture faces (normals along the circumference).
+  std::vector<SectionPoint> section;
+  for (const auto& p : pts) {
+    if (std::abs(wrap_angle(p.phi - azimuth)) > half_width) continue;
+    const Vec2 n(p.n_r, p.n_h);
+    if (n.norm() < 0.7) continue;
+    section.push_back({{p.r, p.h}, n.normalized()});
+  }
+  std::vector<Vec2> outer_pts, inner_pts;
+  for (const auto& sp : keep_skin_points(section)) {
+    (is_outer(sp.normal) ? outer_pts : inner_pts).push_back(sp.rz);
+  }
+  result.profile.outer = skin_polyline(outer_pts);
+  result.profile.inner = skin_polyline(inner_pts);
+  if (result.profile.outer.size() < 2) {
+    throw ProcessingError(fmt::format("profile: the section at azimuth {:.1f} deg shows no outer "
+                                      "skin ({} points in the slab); the scan misses this side",
+                                      azimuth / kDegToRad, section.size()));
+  }
+
+  Measurements& m = result.measurements;
+  double h_min = std::numeric_limits<double>::infinity(), h_max = -h_min;
+  for (const auto& p : pts) {
+    h_min = std::min(h_min, p.h);
+    h_max = std::max(h_max, p.h);
+  }
+  m.height_mm = h_max - h_min;
+  const Polyline2& outer = result.profile.outer;
+  for (const auto& v : outer) m.max_diameter_mm = std::max(m.max_diameter_mm, 2.0 * v[0]);
+  m.wall_thickness_mm = wall_thickness(outer, result.profile.inner);
+
+  if (result.has_rim) {
+    const auto rim = std::max_element(outer.begin(), outer.end(),
+                                      [](const auto& a, const auto& b) { return a[1] < b[1]; });
+    m.rim_diameter_mm = 2.0 * (*rim)[0];
+    std::vector<double> rim_phi;
+    for (const auto& p : pts) {
+      if (p.h >= h_max - params.rim_band_mm) rim_phi.push_back(p.phi);
+    }
+    m.rim_percent = angular_coverage(rim_phi, (*rim)[0]).degrees / 360.0 * 100.0;
+    // Inclination of the outer wall over the last ~10 mm below the rim: 0 = vertical,
+    // positive = flaring outwards.
+    constexpr double kRimSpanMm = 10.0;
+    const Vec2 rim_vertex = as_vec(*rim);
+    for (auto it = std::make_reverse_iterator(rim); it != outer.rend(); ++it) {
+      const Vec2 below = as_vec(*it);
+      if ((rim_vertex - below).norm() >= kRimSpanMm || std::next(it) == outer.rend()) {
+        const Vec2 d = rim_vertex - below;
+        if (d.norm() > 1.0) m.rim_inclination_deg = std::atan2(d.x(), d.y()) / kDegToRad;
+        break;
+      }
+    }
+  }
+  if (result.has_base) {
+    const double lowest = std::min_element(outer.begin(), outer.end(), [](const auto& a, const auto& b) {
+                            return a[1] < b[1];
+                          })->at(1);
+    double base_r = 0.0;
+    for (const auto& v : outer) {
+      if (v[1] <= lowest + params.rim_band_mm) base_r = std::max(base_r, v[0]);
+    }
+    m.base_diameter_mm = 2.0 * base_r;
+  }
+  constexpr double kCompleteArcDeg = 355.0;
+  if (arc.degrees >= kCompleteArcDeg && result.has_base && result.has_rim && result.profile.inner.size() >= 2) {
+    m.volume_ml = volume_under_inner_mm3(result.profile.inner) / 1000.0;
+  }
+  return result;
+}
+
+}  // namespace sherd::profile

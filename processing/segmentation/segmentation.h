@@ -21,6 +21,17 @@ struct Params {
   double volume_radius_mm = 160.0;  // cylinder about the world z axis; <= 0: no volume cut
   double volume_min_z_mm = 0.5;
   double volume_max_z_mm = 400.0;
+  // Colour background test (HSV): grey means saturation below this; black means grey and value
+  // below black_max_value; white means grey and value above white_min_value. Saturation does not
+  // change with shading, so dark shaded clay stays clay.
+  double background_max_saturation = 0.25;
+  double black_max_value = 0.35;
+  double white_min_value = 0.55;
+  // Support plane: the dominant RANSAC plane is removed (with the points within
+  // plane_distance_mm of it) only when its inliers span at least plane_min_extent_mm, so that
+  // a large flat sherd is never taken for the support.
+  double plane_distance_mm = 1.5;
+  double plane_min_extent_mm = 250.0;
 };
 
 struct Part {
@@ -41,6 +52,10 @@ struct Result {
   std::size_t background_points = 0;
 };
 
+// Steps, in order: non-finite points out; the support plane (fitted on the whole scene, where it
+// is certainly the dominant plane); the scanning volume; background colour (needs colours);
+// Euclidean clustering; size filters. Every point removed by the first four counts in
+// background_points. An empty input gives an empty result.
 Result segment(const Mesh& fused, const Params& params);
 
 }  // namespace sherd::segmentation

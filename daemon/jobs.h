@@ -1,0 +1,79 @@
+// The daemon's job runner: one acquisition thread (one set of hardware: scans are acquired one
+// after another) and one processing thread, so that processing of scan N overlaps acquisition of
+// scan N+1. Raw views are on disk and in the database before processing starts; on start-up
+// every unfinished scan is resumed from what the database holds.
+#pragma once
+
+#include "config/station_config.h"
+#include "daemon/station.h"
+#include "db/store.h"
+
+#include <nlohmann/json.hpp>
+
+#include <atomic>
+#include <condition_variable>
+#include <deque>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace sherd::station {
+
+// Events of one scan, delivered to one client connection.
+class Subscription {
+ public:
+  void push(const nlohmann::json& event);
+  // Waits for the next event; nullopt once the subscription is closed and drained.
+  std::optional<nlohmann::json> next();
+  void close();
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable ready_;
+  std::deque<nlohmann::json> events_;
+  bool closed_ = false;
+};
+
+class JobRunner {
+ public:
+  JobRunner(const config::StationConfig& config, std::shared_ptr<db::Store> store, Station station);
+  ~JobRunner();
+
+  // Queues the unfinished scans found in the database, then starts the threads.
+  void start();
+  // Finishes cleanly: no new jobs; acquisition stops after the view in hand (the scan stays
+  // resumable); processing finishes the scan in hand. Idempotent.
+  void stop();
+
+  // Creates a scan and queues its acquisition; the returned subscription sees all its events.
+  std::pair<std::string, std::shared_ptr<Subscription>> submit_scan();
+  std::shared_ptr<Subscription> subscribe(const std::string& scan_id);
+
+  nlohmann::json status() const;
+
+ private:
+  void acquisition_loop();
+  void processing_loop();
+  void acquire(const std::string& scan_id);
+  void process(const std::string& scan_id);
+  void fail(const std::string& scan_id, const std::string& reason);
+  void publish(const std::string& scan_id, nlohmann::json event);
+
+  const config::StationConfig& config_;
+  std::shared_ptr<db::Store> store_;
+  Station station_;
+
+  mutable std::mutex mutex_;
+  std::condition_variable work_;
+  std::deque<std::string> to_acquire_, to_process_;
+  std::string acquiring_, processing_;  // scan ids in hand ("" when idle)
+  std::multimap<std::string, std::weak_ptr<Subscription>> subscribers_;
+  std::atomic<bool> stopping_{false};
+  std::thread acquisition_thread_, processing_thread_;
+};
+
+}  // namespace sherd::station

@@ -1,0 +1,511 @@
+#include "render/mesh_view.h"
+
+#include "core/errors.h"
+#include "render/egl_context.h"
+
+#include <GLES3/gl3.h>
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <string>
+
+namespace sherd::render {
+namespace {
+
+constexpr int kMaxLights = 4;
+constexpr int kShadowMapSize = 2048;
+
+constexpr const char* kVertexShader = R"(#version 300 es
+uniform mat4 u_world_to_clip;
+uniform mat4 u_world_to_view;
+uniform mat4 u_world_to_shadow_clip;
+uniform float u_point_size;
+in vec3 a_position;
+in vec3 a_normal;
+out vec3 v_view_position;
+out vec3 v_view_normal;
+out vec4 v_shadow_clip;
+void main() {
+  vec4 p = vec4(a_position, 1.0);
+  v_view_position = (u_world_to_view * p).xyz;
+  v_view_normal = mat3(u_world_to_view) * a_normal;
+  v_shadow_clip = u_world_to_shadow_clip * p;
+  gl_Position = u_world_to_clip * p;
+  gl_PointSize = u_point_size;
+}
+)";
+
+// pbrt's Lafortune evaluation (see config/materials.xml). The local frame has z = n; pbrt takes
+// x from dp/du, but every preset is isotropic (Cx = Cy), and then
+//   Cxy (wo.x wi.x + wo.y wi.y) = Cxy (wo·wi − wo.z wi.z)
+// holds in any tangent frame, so no tangent is needed.
+constexpr const char* kFragmentShader = R"(#version 300 es
+precision highp float;
+precision highp sampler2DShadow;
+const int MAX_LOBES = 4;
+const int MAX_LIGHTS = 4;
+const float PI = 3.14159265358979;
+uniform vec3 u_diffuse;
+uniform int u_lobe_count;
+uniform vec3 u_cxy[MAX_LOBES];
+uniform vec3 u_cz[MAX_LOBES];
+uniform vec3 u_exponent[MAX_LOBES];
+uniform int u_light_count;
+uniform vec3 u_towards_light[MAX_LIGHTS];
+uniform float u_light_intensity[MAX_LIGHTS];
+uniform int u_shadow_light;
+uniform sampler2DShadow u_shadow_map;
+uniform float u_ambient;
+uniform float u_exposure;
+uniform bool u_srgb_encode;
+uniform vec2 u_keep_x;
+uniform bool u_round_points;
+in vec3 v_view_position;
+in vec3 v_view_normal;
+in vec4 v_shadow_clip;
+out vec4 o_colour;
+
+float clamped_pow(float base, float exponent) {
+  return base > 0.0 ? pow(base, exponent) : 0.0;  // pbrt: negative lobe bases contribute 0
+}
+
+vec3 lafortune(vec3 n, vec3 wo, vec3 wi) {
+  float cos_o = dot(n, wo);
+  float cos_i = dot(n, wi);
+  float tangential = dot(wo, wi) - cos_o * cos_i;
+  vec3 f = u_diffuse / PI;
+  for (int i = 0; i < u_lobe_count; ++i) {
+    vec3 base = u_cxy[i] * tangential + u_cz[i] * (cos_o * cos_i);
+    f += vec3(clamped_pow(base.r, u_exponent[i].r), clamped_pow(base.g, u_exponent[i].g),
+              clamped_pow(base.b, u_exponent[i].b));
+  }
+  return f;
+}
+
+float key_light_visibility() {
+  vec3 p = v_shadow_clip.xyz / v_shadow_clip.w * 0.5 + 0.5;
+  // 3×3 percentage-closer filtering (each tap is itself a bilinear 2×2 comparison).
+  float lit = 0.0;
+  vec2 texel = 1.0 / vec2(textureSize(u_shadow_map, 0));
+  for (int dy = -1; dy <= 1; ++dy)
+    for (int dx = -1; dx <= 1; ++dx)
+      lit += texture(u_shadow_map, vec3(p.xy + vec2(dx, dy) * texel, p.z));
+  return lit / 9.0;
+}
+
+void main() {
+  if (v_view_position.x < u_keep_x.x || v_view_position.x > u_keep_x.y) discard;
+  if (u_round_points && length(gl_PointCoord - 0.5) > 0.5) discard;
+  vec3 wo = vec3(0.0, 0.0, 1.0);  // orthographic: the viewer is along +z everywhere
+  vec3 n = normalize(v_view_normal);
+  if (dot(n, wo) < 0.0) n = -n;   // a surface seen from behind is shaded on its visible side
+  vec3 radiance = u_ambient * u_diffuse;
+  for (int i = 0; i < u_light_count; ++i) {
+    vec3 wi = normalize(u_towards_light[i]);
+    float cos_i = dot(n, wi);
+    if (cos_i <= 0.0) continue;   // wo and wi on opposite sides: no reflection
+    float visibility = i == u_shadow_light ? key_light_visibility() : 1.0;
+    radiance += lafortune(n, wo, wi) * (cos_i * u_light_intensity[i] * visibility);
+  }
+  vec3 colour = clamp(radiance * u_exposure, 0.0, 1.0);
+  if (u_srgb_encode) colour = pow(colour, vec3(1.0 / 2.2));
+  o_colour = vec4(colour, 1.0);
+}
+)";
+
+constexpr const char* kShadowFragmentShader = R"(#version 300 es
+precision mediump float;
+void main() {}
+)";
+
+void check_gl(const char* what) {
+  if (GLenum error = glGetError(); error != GL_NO_ERROR)
+    throw ProcessingError(fmt::format("render: OpenGL error 0x{:x} during {}", error, what));
+}
+
+// RAII names for GL objects, so that an exception mid-render leaks nothing in the shared context.
+template <void (*Delete)(GLsizei, const GLuint*)>
+struct GlNames {
+  GLuint id = 0;
+  ~GlNames() {
+    if (id) Delete(1, &id);
+  }
+};
+void delete_buffers(GLsizei n, const GLuint* ids) { glDeleteBuffers(n, ids); }
+void delete_textures(GLsizei n, const GLuint* ids) { glDeleteTextures(n, ids); }
+void delete_framebuffers(GLsizei n, const GLuint* ids) { glDeleteFramebuffers(n, ids); }
+void delete_renderbuffers(GLsizei n, const GLuint* ids) { glDeleteRenderbuffers(n, ids); }
+void delete_vertex_arrays(GLsizei n, const GLuint* ids) { glDeleteVertexArrays(n, ids); }
+using Buffer = GlNames<delete_buffers>;
+using Texture = GlNames<delete_textures>;
+using Framebuffer = GlNames<delete_framebuffers>;
+using Renderbuffer = GlNames<delete_renderbuffers>;
+using VertexArray = GlNames<delete_vertex_arrays>;
+
+struct Program {
+  GLuint id = 0;
+  ~Program() {
+    if (id) glDeleteProgram(id);
+  }
+  GLint uniform(const char* name) const { return glGetUniformLocation(id, name); }
+};
+
+GLuint compile(GLenum type, const char* source) {
+  GLuint shader = glCreateShader(type);
+  glShaderSource(shader, 1, &source, nullptr);
+  glCompileShader(shader);
+  GLint ok = 0;
+  glGetShaderiv(shader, GL_COMPILE_STATUS, &ok);
+  if (!ok) {
+    std::array<char, 4096> log{};
+    glGetShaderInfoLog(shader, log.size(), nullptr, log.data());
+    glDeleteShader(shader);
+    throw ProcessingError(fmt::format("render: shader compilation failed: {}", log.data()));
+  }
+  return shader;
+}
+
+void link(Program& program, const char* vertex_source, const char* fragment_source) {
+  GLuint vertex = compile(GL_VERTEX_SHADER, vertex_source);
+  GLuint fragment = 0;
+  try {
+    fragment = compile(GL_FRAGMENT_SHADER, fragment_source);
+  } catch (...) {
+    glDeleteShader(vertex);
+    throw;
+  }
+  program.id = glCreateProgram();
+  glAttachShader(program.id, vertex);
+  glAttachShader(program.id, fragment);
+  glBindAttribLocation(program.id, 0, "a_position");
+  glBindAttribLocation(program.id, 1, "a_normal");
+  glLinkProgram(program.id);
+  glDeleteShader(vertex);
+  glDeleteShader(fragment);
+  GLint ok = 0;
+  glGetProgramiv(program.id, GL_LINK_STATUS, &ok);
+  if (!ok) {
+    std::array<char, 4096> log{};
+    glGetProgramInfoLog(program.id, log.size(), nullptr, log.data());
+    throw ProcessingError(fmt::format("render: shader link failed: {}", log.data()));
+  }
+}
+
+// Maps the box [x0,x1]×[y0,y1]×[z0,z1] of a frame (z towards the viewer) onto clip space, the
+// nearest z to depth −1.
+Eigen::Matrix4f orthographic(double x0, double x1, double y0, double y1, double z0, double z1) {
+  Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
+  m(0, 0) = 2.0 / (x1 - x0);
+  m(0, 3) = -(x1 + x0) / (x1 - x0);
+  m(1, 1) = 2.0 / (y1 - y0);
+  m(1, 3) = -(y1 + y0) / (y1 - y0);
+  m(2, 2) = -2.0 / (z1 - z0);
+  m(2, 3) = (z1 + z0) / (z1 - z0);
+  return m.cast<float>();
+}
+
+std::vector<Vec3f> vertex_normals(const Mesh& mesh) {
+  if (mesh.vertices.has_normals()) return mesh.vertices.normals;
+  std::vector<Vec3f> normals(mesh.vertices.size(), Vec3f::Zero());
+  for (const Triangle& t : mesh.triangles) {
+    const Vec3f& a = mesh.vertices.points[t[0]];
+    // Unnormalised cross product: larger triangles weigh more.
+    const Vec3f n = (mesh.vertices.points[t[1]] - a).cross(mesh.vertices.points[t[2]] - a);
+    for (std::uint32_t v : t) normals[v] += n;
+  }
+  for (Vec3f& n : normals) n = n.squaredNorm() > 0.f ? n.normalized() : Vec3f::UnitZ();
+  return normals;
+}
+
+void validate(const Mesh& mesh, const OrthoCamera& camera, const Lighting& lighting) {
+  if (mesh.empty()) throw InputError("render: the mesh to render has no vertices");
+  for (const Vec3f& p : mesh.vertices.points)
+    if (!p.allFinite())
+      throw InputError("render: the mesh has a non-finite vertex (NaN/inf); remove invalid "
+                       "points before rendering");
+  const auto n = static_cast<std::uint32_t>(mesh.vertices.size());
+  for (const Triangle& t : mesh.triangles)
+    if (t[0] >= n || t[1] >= n || t[2] >= n)
+      throw InputError(fmt::format("render: a triangle refers to vertex {} of a {}-vertex mesh",
+                                   std::max({t[0], t[1], t[2]}), n));
+  if (camera.width_px <= 0 || camera.height_px <= 0 || !(camera.pixel_mm > 0.0))
+    throw InputError(fmt::format("render: bad image size {}×{} px at {} mm/px", camera.width_px,
+                                 camera.height_px, camera.pixel_mm));
+  if (lighting.lights.size() > kMaxLights ||
+      std::count_if(lighting.lights.begin(), lighting.lights.end(),
+                    [](const DirectionalLight& l) { return l.casts_shadow; }) > 1)
+    throw InputError(fmt::format("render: at most {} lights, one casting shadows", kMaxLights));
+}
+
+struct MeshBuffers {
+  VertexArray vao;
+  Buffer positions, normals, indices;
+  GLsizei index_count = 0;
+};
+
+void upload(const Mesh& mesh, MeshBuffers& buffers) {
+  const std::vector<Vec3f> normals = vertex_normals(mesh);
+  glGenVertexArrays(1, &buffers.vao.id);
+  glBindVertexArray(buffers.vao.id);
+  glGenBuffers(1, &buffers.positions.id);
+  glBindBuffer(GL_ARRAY_BUFFER, buffers.positions.id);
+  glBufferData(GL_ARRAY_BUFFER, mesh.vertices.points.size() * sizeof(Vec3f),
+               mesh.vertices.points.data(), GL_STATIC_DRAW);
+  glVertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, sizeof(Vec3f), nullptr);
+  glEnableVertexAttribArray(0);
+  glGenBuffers(1, &buffers.normals.id);
+  glBindBuffer(GL_ARRAY_BUFFER, buffers.normals.id);
+  glBufferData(GL_ARRAY_BUFFER, normals.size() * sizeof(Vec3f), normals.data(), GL_STATIC_DRAW);
+  glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, sizeof(Vec3f), nullptr);
+  glEnableVertexAttribArray(1);
+  if (!mesh.triangles.empty()) {
+    glGenBuffers(1, &buffers.indices.id);
+    glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, buffers.indices.id);
+    glBufferData(GL_ELEMENT_ARRAY_BUFFER, mesh.triangles.size() * sizeof(Triangle),
+                 mesh.triangles.data(), GL_STATIC_DRAW);
+    buffers.index_count = static_cast<GLsizei>(mesh.triangles.size() * 3);
+  }
+  check_gl("vertex upload");
+}
+
+void draw(const Mesh& mesh, const MeshBuffers& buffers) {
+  glBindVertexArray(buffers.vao.id);
+  if (buffers.index_count > 0)
+    glDrawElements(GL_TRIANGLES, buffers.index_count, GL_UNSIGNED_INT, nullptr);
+  else
+    glDrawArrays(GL_POINTS, 0, static_cast<GLsizei>(mesh.vertices.size()));
+}
+
+// Sample spacing of a point set, for the point size: its points spread over roughly the two
+// largest extents of its bounding box. A coarse estimate, good enough to close the gaps.
+double point_spacing_mm(const Cloud& cloud) {
+  Vec3d e = Box3::of(cloud).extent();
+  std::sort(e.data(), e.data() + 3);
+  return std::sqrt(std::max(e[2] * e[1], 1e-6) / static_cast<double>(cloud.size()));
+}
+
+// The key light's shadow map: depth of the mesh seen along the light, orthographic over the
+// mesh's bounding sphere. Returns world → shadow clip.
+Eigen::Matrix4f render_shadow_map(const Mesh& mesh, const MeshBuffers& buffers,
+                                  const Pose& world_to_view, const Vec3d& towards_light_view,
+                                  float point_size, Texture& depth) {
+  const Box3 box = Box3::of(mesh.vertices);
+  const Vec3d centre = 0.5 * (box.min + box.max);
+  const double radius = std::max(0.5 * box.extent().norm(), 1e-3);
+  // Light frame: z towards the light, any x ⟂ z.
+  const Vec3d z = (world_to_view.linear().transpose() * towards_light_view).normalized();
+  const Vec3d x = z.unitOrthogonal();
+  Eigen::Matrix4d world_to_light = Eigen::Matrix4d::Identity();
+  world_to_light.block<1, 3>(0, 0) = x.transpose();
+  world_to_light.block<1, 3>(1, 0) = z.cross(x).transpose();
+  world_to_light.block<1, 3>(2, 0) = z.transpose();
+  world_to_light.block<3, 1>(0, 3) = -world_to_light.block<3, 3>(0, 0) * centre;
+  const Eigen::Matrix4f world_to_shadow_clip =
+      orthographic(-radius, radius, -radius, radius, -radius, radius) *
+      world_to_light.cast<float>();
+
+  glGenTextures(1, &depth.id);
+  glBindTexture(GL_TEXTURE_2D, depth.id);
+  glTexStorage2D(GL_TEXTURE_2D, 1, GL_DEPTH_COMPONENT32F, kShadowMapSize, kShadowMapSize);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_COMPARE_MODE, GL_COMPARE_REF_TO_TEXTURE);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_COMPARE_FUNC, GL_LEQUAL);
+  Framebuffer fbo;
+  glGenFramebuffers(1, &fbo.id);
+  glBindFramebuffer(GL_FRAMEBUFFER, fbo.id);
+  glFramebufferTexture2D(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_TEXTURE_2D, depth.id, 0);
+  const GLenum none = GL_NONE;
+  glDrawBuffers(1, &none);
+  if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+    throw ProcessingError("render: the shadow-map framebuffer is incomplete");
+
+  Program program;
+  link(program, kVertexShader, kShadowFragmentShader);
+  glUseProgram(program.id);
+  glUniformMatrix4fv(program.uniform("u_world_to_clip"), 1, GL_FALSE, world_to_shadow_clip.data());
+  glUniform1f(program.uniform("u_point_size"), point_size);
+  glViewport(0, 0, kShadowMapSize, kShadowMapSize);
+  glEnable(GL_DEPTH_TEST);
+  glDepthFunc(GL_LESS);
+  glClear(GL_DEPTH_BUFFER_BIT);
+  // Slope-scaled offset pushes the stored depth behind the surface: no self-shadowing acne.
+  glEnable(GL_POLYGON_OFFSET_FILL);
+  glPolygonOffset(2.0f, 4.0f);
+  draw(mesh, buffers);
+  glDisable(GL_POLYGON_OFFSET_FILL);
+  check_gl("shadow pass");
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  return world_to_shadow_clip;
+}
+
+}  // namespace
+
+Lighting drawing_lighting() {
+  Lighting lighting;
+  lighting.lights = {{Vec3d(-1.0, 1.0, 1.2), 2.4, true}, {Vec3d(1.0, 0.2, 0.8), 0.8, false}};
+  lighting.ambient = 0.35;
+  lighting.exposure = 1.0;
+  return lighting;
+}
+
+RgbaImage render_mesh(const Mesh& mesh, const LafortuneMaterial& material,
+                      const OrthoCamera& camera, const Lighting& lighting) {
+  validate(mesh, camera, lighting);
+  if (material.lobes.size() > kMaxLafortuneLobes)
+    throw InputError(fmt::format("render: material '{}' has more than {} lobes", material.name,
+                                 kMaxLafortuneLobes));
+  GlContextLock context;
+
+  GLint max_size = 0, max_viewport[2] = {0, 0};
+  glGetIntegerv(GL_MAX_RENDERBUFFER_SIZE, &max_size);
+  glGetIntegerv(GL_MAX_VIEWPORT_DIMS, max_viewport);
+  max_size = std::min({max_size, max_viewport[0], max_viewport[1]});
+  if (camera.width_px > max_size || camera.height_px > max_size)
+    throw ProcessingError(fmt::format(
+        "render: a {}×{} px image exceeds this GL's limit of {} px per side; lower the dpi",
+        camera.width_px, camera.height_px, max_size));
+
+  MeshBuffers buffers;
+  upload(mesh, buffers);
+  const float point_size =
+      mesh.triangles.empty()
+          ? static_cast<float>(std::clamp(1.5 * point_spacing_mm(mesh.vertices) / camera.pixel_mm,
+                                          1.0, 64.0))
+          : 1.0f;
+
+  // Depth range of the mesh in the view, padded so nothing is clipped by the near/far planes.
+  double z_min = std::numeric_limits<double>::infinity(), z_max = -z_min;
+  for (const Vec3f& p : mesh.vertices.points) {
+    const double z = (camera.world_to_view * p.cast<double>()).z();
+    z_min = std::min(z_min, z);
+    z_max = std::max(z_max, z);
+  }
+  const double pad = 1.0 + 0.01 * (z_max - z_min);
+  const Eigen::Matrix4f world_to_view = camera.world_to_view.matrix().cast<float>();
+  const Eigen::Matrix4f world_to_clip =
+      orthographic(camera.left_mm, camera.left_mm + camera.width_px * camera.pixel_mm,
+                   camera.bottom_mm, camera.bottom_mm + camera.height_px * camera.pixel_mm,
+                   z_min - pad, z_max + pad) *
+      world_to_view;
+
+  Texture shadow_map;
+  Eigen::Matrix4f world_to_shadow_clip = Eigen::Matrix4f::Identity();
+  int shadow_light = -1;
+  for (std::size_t i = 0; i < lighting.lights.size(); ++i)
+    if (lighting.lights[i].casts_shadow) {
+      shadow_light = static_cast<int>(i);
+      world_to_shadow_clip = render_shadow_map(mesh, buffers, camera.world_to_view,
+                                               lighting.lights[i].towards_light, point_size,
+                                               shadow_map);
+    }
+  if (shadow_light < 0) {
+    // The sampler must still be complete: a 1×1 map at depth 1 lights everything.
+    glGenTextures(1, &shadow_map.id);
+    glBindTexture(GL_TEXTURE_2D, shadow_map.id);
+    const float far = 1.0f;
+    glTexImage2D(GL_TEXTURE_2D, 0, GL_DEPTH_COMPONENT32F, 1, 1, 0, GL_DEPTH_COMPONENT, GL_FLOAT,
+                 &far);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_COMPARE_MODE, GL_COMPARE_REF_TO_TEXTURE);
+  }
+
+  Renderbuffer colour, depth;
+  Framebuffer fbo;
+  glGenRenderbuffers(1, &colour.id);
+  glBindRenderbuffer(GL_RENDERBUFFER, colour.id);
+  glRenderbufferStorage(GL_RENDERBUFFER, GL_RGBA8, camera.width_px, camera.height_px);
+  glGenRenderbuffers(1, &depth.id);
+  glBindRenderbuffer(GL_RENDERBUFFER, depth.id);
+  glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT24, camera.width_px, camera.height_px);
+  glGenFramebuffers(1, &fbo.id);
+  glBindFramebuffer(GL_FRAMEBUFFER, fbo.id);
+  glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, colour.id);
+  glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth.id);
+  if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+    throw ProcessingError(fmt::format("render: a {}×{} px framebuffer is incomplete (out of "
+                                      "memory?); lower the dpi",
+                                      camera.width_px, camera.height_px));
+
+  Program program;
+  link(program, kVertexShader, kFragmentShader);
+  glUseProgram(program.id);
+  glUniformMatrix4fv(program.uniform("u_world_to_clip"), 1, GL_FALSE, world_to_clip.data());
+  glUniformMatrix4fv(program.uniform("u_world_to_view"), 1, GL_FALSE, world_to_view.data());
+  glUniformMatrix4fv(program.uniform("u_world_to_shadow_clip"), 1, GL_FALSE,
+                     world_to_shadow_clip.data());
+  glUniform1f(program.uniform("u_point_size"), point_size);
+  glUniform1i(program.uniform("u_round_points"), mesh.triangles.empty());
+
+  auto rgb = [](const RgbCoefficients& c) {
+    return std::array<GLfloat, 3>{static_cast<GLfloat>(c[0]), static_cast<GLfloat>(c[1]),
+                                  static_cast<GLfloat>(c[2])};
+  };
+  std::array<std::array<GLfloat, 3>, kMaxLafortuneLobes> cxy{}, cz{}, exponent{};
+  for (std::size_t i = 0; i < material.lobes.size(); ++i) {
+    cxy[i] = rgb(material.lobes[i].cxy);
+    cz[i] = rgb(material.lobes[i].cz);
+    exponent[i] = rgb(material.lobes[i].exponent);
+  }
+  glUniform3fv(program.uniform("u_diffuse"), 1, rgb(material.diffuse).data());
+  glUniform1i(program.uniform("u_lobe_count"), static_cast<GLint>(material.lobes.size()));
+  glUniform3fv(program.uniform("u_cxy"), kMaxLafortuneLobes, cxy[0].data());
+  glUniform3fv(program.uniform("u_cz"), kMaxLafortuneLobes, cz[0].data());
+  glUniform3fv(program.uniform("u_exponent"), kMaxLafortuneLobes, exponent[0].data());
+
+  std::array<std::array<GLfloat, 3>, kMaxLights> towards{};
+  std::array<GLfloat, kMaxLights> intensity{};
+  for (std::size_t i = 0; i < lighting.lights.size(); ++i) {
+    const Vec3f d = lighting.lights[i].towards_light.cast<float>();
+    towards[i] = {d.x(), d.y(), d.z()};
+    intensity[i] = static_cast<GLfloat>(lighting.lights[i].intensity);
+  }
+  glUniform1i(program.uniform("u_light_count"), static_cast<GLint>(lighting.lights.size()));
+  glUniform3fv(program.uniform("u_towards_light"), kMaxLights, towards[0].data());
+  glUniform1fv(program.uniform("u_light_intensity"), kMaxLights, intensity.data());
+  glUniform1i(program.uniform("u_shadow_light"), shadow_light);
+  glActiveTexture(GL_TEXTURE0);
+  glBindTexture(GL_TEXTURE_2D, shadow_map.id);
+  glUniform1i(program.uniform("u_shadow_map"), 0);
+  glUniform1f(program.uniform("u_ambient"), static_cast<GLfloat>(lighting.ambient));
+  glUniform1f(program.uniform("u_exposure"), static_cast<GLfloat>(lighting.exposure));
+  glUniform1i(program.uniform("u_srgb_encode"), lighting.srgb_encode);
+  // Clamp infinities: GLSL ES need not represent them in uniforms.
+  const auto finite = [](double v) {
+    return static_cast<GLfloat>(std::clamp(v, -1e30, 1e30));
+  };
+  glUniform2f(program.uniform("u_keep_x"), finite(camera.keep_x_min_mm),
+              finite(camera.keep_x_max_mm));
+
+  glViewport(0, 0, camera.width_px, camera.height_px);
+  glEnable(GL_DEPTH_TEST);
+  glDepthFunc(GL_LESS);
+  glDisable(GL_CULL_FACE);  // sherds are open shells: both sides of a triangle can be seen
+  glClearColor(0.f, 0.f, 0.f, 0.f);
+  glClearDepthf(1.f);
+  glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+  draw(mesh, buffers);
+  check_gl("main pass");
+
+  RgbaImage image;
+  image.width = camera.width_px;
+  image.height = camera.height_px;
+  image.rgba.resize(static_cast<std::size_t>(image.width) * image.height * 4);
+  glPixelStorei(GL_PACK_ALIGNMENT, 1);
+  glReadPixels(0, 0, image.width, image.height, GL_RGBA, GL_UNSIGNED_BYTE, image.rgba.data());
+  check_gl("read-back");
+  glBindFramebuffer(GL_FRAMEBUFFER, 0);
+  // GL rows run bottom-up; images here run top-down.
+  const std::size_t row = static_cast<std::size_t>(image.width) * 4;
+  for (int j = 0; j < image.height / 2; ++j)
+    std::swap_ranges(image.rgba.begin() + j * row, image.rgba.begin() + (j + 1) * row,
+                     image.rgba.end() - (j + 1) * row);
+  return image;
+}
+
+}  // namespace sherd::render

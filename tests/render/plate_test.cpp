@@ -1,0 +1,274 @@
+// Whole plates of hand-built sherds: the PNG read back with libpng (size, pHYs, scale, layout)
+// and profile.svg read back with libxml2 (mm units, viewBox, section polygon).
+#include "render/plate.h"
+
+#include "core/errors.h"
+#include "test_meshes.h"
+
+#include <gtest/gtest.h>
+#include <libxml/parser.h>
+#include <libxml/tree.h>
+#include <png.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <numbers>
+#include <sstream>
+
+namespace sherd::render {
+namespace {
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+struct Png {
+  int width = 0, height = 0;
+  png_uint_32 x_pixels_per_unit = 0, y_pixels_per_unit = 0;
+  int unit = -1;
+  std::vector<std::uint8_t> rgb;
+  const std::uint8_t* at(int column, int row) const {
+    return &rgb[(static_cast<std::size_t>(row) * width + column) * 3];
+  }
+  bool white(int column, int row) const {
+    const std::uint8_t* p = at(column, row);
+    return p[0] > 250 && p[1] > 250 && p[2] > 250;
+  }
+  bool black(int column, int row) const {
+    const std::uint8_t* p = at(column, row);
+    return p[0] < 40 && p[1] < 40 && p[2] < 40;
+  }
+};
+
+Png read_png(const std::filesystem::path& file) {
+  Png png;
+  std::FILE* in = std::fopen(file.c_str(), "rb");
+  if (!in) throw std::runtime_error("cannot open " + file.string());
+  png_structp reader = png_create_read_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
+  png_infop info = png_create_info_struct(reader);
+  png_init_io(reader, in);
+  png_read_info(reader, info);
+  png.width = static_cast<int>(png_get_image_width(reader, info));
+  png.height = static_cast<int>(png_get_image_height(reader, info));
+  EXPECT_EQ(png_get_color_type(reader, info), PNG_COLOR_TYPE_RGB);
+  EXPECT_EQ(png_get_bit_depth(reader, info), 8);
+  png_get_pHYs(reader, info, &png.x_pixels_per_unit, &png.y_pixels_per_unit, &png.unit);
+  png.rgb.resize(static_cast<std::size_t>(png.width) * png.height * 3);
+  for (int row = 0; row < png.height; ++row)
+    png_read_row(reader, &png.rgb[static_cast<std::size_t>(row) * png.width * 3], nullptr);
+  png_destroy_read_struct(&reader, &info, nullptr);
+  std::fclose(in);
+  return png;
+}
+
+std::filesystem::path fresh_dir(const std::string& name) {
+  const auto dir = std::filesystem::temp_directory_path() / ("sherd_render_" + name);
+  std::filesystem::remove_all(dir);
+  return dir;
+}
+
+PlateSettings settings_at(int dpi) {
+  PlateSettings settings;
+  settings.dpi = dpi;
+  settings.materials_file = std::filesystem::path(SHERD_SOURCE_DIR) / "config/materials.xml";
+  return settings;
+}
+
+// Longest run of non-white pixels in a row.
+int longest_ink_run(const Png& png, int row) {
+  int best = 0, run = 0;
+  for (int i = 0; i < png.width; ++i) {
+    run = png.white(i, row) ? 0 : run + 1;
+    best = std::max(best, run);
+  }
+  return best;
+}
+
+TEST(Plate, BodySherdIsAtExactScaleWithPhys) {
+  // No axis: front and back of a 100 × 60 × 5 mm slab side by side at 600 dpi.
+  const Mesh slab = test::box(100.0, 60.0, 5.0);
+  const auto dir = fresh_dir("body");
+  const PlateFiles files = render_plate({"scan-1", "sherd-1", &slab, nullptr}, settings_at(600), dir);
+  const Png png = read_png(files.png);
+  EXPECT_EQ(png.width, files.width_px);
+  EXPECT_EQ(png.height, files.height_px);
+  EXPECT_EQ(png.unit, PNG_RESOLUTION_METER);
+  EXPECT_EQ(png.x_pixels_per_unit, 23622u);  // 600 / 0.0254 = 23622.05
+  EXPECT_EQ(png.y_pixels_per_unit, 23622u);
+  int widest = 0;
+  for (int row = 0; row < png.height; ++row) widest = std::max(widest, longest_ink_run(png, row));
+  EXPECT_NEAR(widest, 2362, 1);  // 100 mm at 600 dpi; the two views are 10 mm apart
+  EXPECT_TRUE(std::filesystem::exists(files.svg));
+}
+
+// A wall patch of outer radius 50, inner 45, 40 mm high, `arc_deg` of arc, posed in the world by
+// an arbitrary rigid motion; the analysis a perfect profile step would give.
+struct WallSherd {
+  Mesh mesh;
+  profile::Analysis analysis;
+};
+
+WallSherd wall_sherd(double arc_deg) {
+  WallSherd sherd;
+  sherd.mesh = test::cylinder_wall(50.0, 45.0, 40.0, 200.0 * kDeg, (200.0 + arc_deg) * kDeg);
+  const Pose sherd_to_world = Eigen::Translation3d(120.0, -30.0, 15.0) *
+                              Eigen::AngleAxisd(0.7, Vec3d(1.0, 2.0, 0.5).normalized());
+  sherd.mesh.vertices.transform(sherd_to_world);
+  profile::Analysis& a = sherd.analysis;
+  a.axis.found = true;
+  a.axis.point = sherd_to_world.translation();
+  a.axis.direction = sherd_to_world.linear().col(2);
+  a.sherd_to_world = sherd_to_world;
+  a.has_rim = true;
+  a.arc_deg = arc_deg;
+  a.profile.outer = {{50.0, 0.0}, {50.0, 20.0}, {50.0, 40.0}};
+  a.profile.inner = {{45.0, 0.0}, {45.0, 20.0}, {45.0, 40.0}};
+  a.measurements.rim_diameter_mm = 100.0;
+  a.measurements.rim_percent = arc_deg / 3.6;
+  a.measurements.max_diameter_mm = 100.0;
+  a.measurements.height_mm = 40.0;
+  a.measurements.wall_thickness_mm = {5.0, 5.0, 5.0};
+  return sherd;
+}
+
+struct Svg {
+  double width_mm = 0, height_mm = 0;
+  std::array<double, 4> view_box{};
+  std::vector<std::array<double, 2>> section;
+};
+
+double mm_attribute(const std::string& value) {
+  EXPECT_EQ(value.substr(value.size() - 2), "mm") << value;
+  return std::stod(value);
+}
+
+Svg read_svg(const std::filesystem::path& file) {
+  Svg svg;
+  xmlDoc* doc = xmlReadFile(file.c_str(), nullptr, XML_PARSE_NONET);
+  if (!doc) throw std::runtime_error("profile.svg is not well-formed XML");
+  const auto attribute = [](xmlNode* node, const char* name) {
+    xmlChar* value = xmlGetProp(node, reinterpret_cast<const xmlChar*>(name));
+    std::string text = value ? reinterpret_cast<const char*>(value) : "";
+    xmlFree(value);
+    return text;
+  };
+  xmlNode* root = xmlDocGetRootElement(doc);
+  EXPECT_STREQ(reinterpret_cast<const char*>(root->name), "svg");
+  svg.width_mm = mm_attribute(attribute(root, "width"));
+  svg.height_mm = mm_attribute(attribute(root, "height"));
+  std::istringstream(attribute(root, "viewBox")) >> svg.view_box[0] >> svg.view_box[1] >>
+      svg.view_box[2] >> svg.view_box[3];
+  for (xmlNode* node = root->children; node; node = node->next)
+    if (node->type == XML_ELEMENT_NODE && attribute(node, "id") == "section") {
+      EXPECT_STREQ(reinterpret_cast<const char*>(node->name), "polygon");
+      EXPECT_EQ(attribute(node, "fill"), "black");
+      std::istringstream points(attribute(node, "points"));
+      double x, y;
+      char comma;
+      while (points >> x >> comma >> y) svg.section.push_back({x, y});
+    }
+  xmlFreeDoc(doc);
+  return svg;
+}
+
+void expect_section_extent(const Svg& svg, double x_min, double x_max) {
+  ASSERT_FALSE(svg.section.empty());
+  double lo_x = 1e9, hi_x = -1e9, lo_y = 1e9, hi_y = -1e9;
+  for (const auto& [x, y] : svg.section) {
+    lo_x = std::min(lo_x, x);
+    hi_x = std::max(hi_x, x);
+    lo_y = std::min(lo_y, y);
+    hi_y = std::max(hi_y, y);
+  }
+  EXPECT_NEAR(lo_x, x_min, 1e-3);
+  EXPECT_NEAR(hi_x, x_max, 1e-3);
+  EXPECT_NEAR(lo_y, -40.0, 1e-3);  // SVG y runs down: heights 0…40 mm are y −40…0
+  EXPECT_NEAR(hi_y, 0.0, 1e-3);
+  // 1 user unit = 1 mm, and the view box holds the whole vessel outline (radius 50).
+  EXPECT_DOUBLE_EQ(svg.view_box[2], svg.width_mm);
+  EXPECT_DOUBLE_EQ(svg.view_box[3], svg.height_mm);
+  EXPECT_LE(svg.view_box[0], -50.0);
+  EXPECT_GE(svg.view_box[0] + svg.view_box[2], 50.0);
+  EXPECT_LE(svg.view_box[1], -40.0);
+  EXPECT_GE(svg.view_box[1] + svg.view_box[3], 0.0);
+  EXPECT_LT(svg.width_mm, 100.0 + 40.0) << "no more than a margin around the drawing";
+}
+
+TEST(Plate, SectionOnTheRightInSvg) {
+  const WallSherd sherd = wall_sherd(120.0);
+  const auto dir = fresh_dir("right");
+  const PlateFiles files =
+      render_plate({"scan-1", "sherd-2", &sherd.mesh, &sherd.analysis}, settings_at(150), dir);
+  expect_section_extent(read_svg(files.svg), 45.0, 50.0);
+}
+
+TEST(Plate, BritishConventionMirrorsTheSection) {
+  const WallSherd sherd = wall_sherd(120.0);
+  PlateSettings settings = settings_at(150);
+  settings.section_on_right = false;
+  const PlateFiles files =
+      render_plate({"scan-1", "sherd-3", &sherd.mesh, &sherd.analysis}, settings, fresh_dir("left"));
+  expect_section_extent(read_svg(files.svg), -50.0, -45.0);
+}
+
+TEST(Plate, ExteriorViewStartsAtTheFacingMeridian) {
+  // A 60° arc turned to start at the meridian facing the viewer and extend to the left spans
+  // u ∈ [−50 sin 60°, 0] = [−43.3, 0]; the section (black) spans u ∈ [45, 50].
+  const WallSherd sherd = wall_sherd(60.0);
+  const int dpi = 300;
+  const double pixel = 25.4 / dpi;
+  const PlateFiles files =
+      render_plate({"scan-1", "sherd-4", &sherd.mesh, &sherd.analysis}, settings_at(dpi),
+                   fresh_dir("arc"));
+  const Png png = read_png(files.png);
+  // Find the section in the rows: the row with the longest black run is inside it.
+  int row = -1, section_first = -1, section_last = -1;
+  for (int j = 0; j < png.height && row < 0; ++j) {
+    int first = -1, last = -1;
+    for (int i = 0; i < png.width; ++i)
+      if (png.black(i, j)) {
+        if (first < 0) first = i;
+        last = i;
+      }
+    // 5 mm of black plus the pen, and nothing else black in the row (text rows are excluded).
+    if (first >= 0 && (last - first + 1) * pixel > 5.0 && (last - first + 1) * pixel < 6.0) {
+      bool solid = true;
+      for (int i = first; i <= last; ++i) solid = solid && png.black(i, j);
+      if (solid && j > png.height / 4) {
+        row = j + static_cast<int>(10.0 / pixel);  // well inside the 40 mm tall section
+        section_first = first;
+        section_last = last;
+      }
+    }
+  }
+  ASSERT_GE(row, 0) << "no section found";
+  const double axis_column = (section_first + section_last + 1) / 2.0 - 47.5 / pixel;
+  const auto column = [&](double u) { return static_cast<int>(axis_column + u / pixel); };
+  EXPECT_FALSE(png.white(column(-40.0), row)) << "inside the rendered arc";
+  EXPECT_FALSE(png.white(column(-20.0), row));
+  EXPECT_FALSE(png.black(column(-20.0), row)) << "shaded, not black";
+  EXPECT_TRUE(png.white(column(-46.5), row)) << "between the arc's end and the outline";
+  EXPECT_TRUE(png.white(column(20.0), row)) << "between the axis and the section";
+  EXPECT_FALSE(png.white(column(-50.0), row)) << "the vessel outline";
+}
+
+TEST(Plate, UnknownMaterialIsAnInputErrorBeforeRendering) {
+  const WallSherd sherd = wall_sherd(90.0);
+  PlateSettings settings = settings_at(150);
+  settings.material = "marble";
+  try {
+    render_plate({"scan-1", "sherd-5", &sherd.mesh, &sherd.analysis}, settings, fresh_dir("bad"));
+    FAIL() << "no InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("unknown material preset 'marble'"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("clay"), std::string::npos);
+  }
+}
+
+TEST(Plate, MissingMeshIsAnInputError) {
+  EXPECT_THROW(render_plate({"scan-1", "sherd-6", nullptr, nullptr}, settings_at(150),
+                            fresh_dir("none")),
+               InputError);
+}
+
+}  // namespace
+}  // namespace sherd::render

@@ -1,0 +1,16 @@
+// Hand-built meshes with known geometry for the render tests.
+#pragma once
+
+#include "core/types.h"
+
+namespace sherd::render::test {
+
+// An axis-aligned box centred on the origin, each face with its own vertices and outward normal.
+Mesh box(double size_x, double size_y, double size_z);
+
+// A wheel-made wall patch in its sherd frame (z = axis): outer radius `outer_r`, inner radius
+// `inner_r`, heights [0, height], azimuths [from_rad, to_rad]; outer, inner, top and bottom
+// faces with radial / vertical normals.
+Mesh cylinder_wall(double outer_r, double inner_r, double height, double from_rad, double to_rad);
+
+}  // namespace sherd::render::test
