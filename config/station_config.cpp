@@ -264,7 +264,7 @@ StationConfig load_station_config(const fs::path& file) {
 
   Section station = section("station");
   station.read("name", config.name);
-  const fs::path data_dir = station.read_path("data_dir").value_or("data");
+  const fs::path data_dir = station.read_path("data_dir").value_or("var");
   const auto output_dir = station.read_path("output_dir");
   const auto socket = station.read_path("socket");
   station.reject_unknown_keys();

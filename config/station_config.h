@@ -12,7 +12,7 @@
 namespace sherd::config {
 
 struct PathSettings {
-  std::filesystem::path data_dir;    // [station] data_dir ("data"); relative → to the working dir
+  std::filesystem::path data_dir;    // [station] data_dir ("var"); relative → to the working dir
   std::filesystem::path database;    // data_dir/sherdscan.db
   std::filesystem::path raw_dir;     // data_dir/raw      (raw views, written before processing)
   std::filesystem::path output_dir;  // [station] output_dir, default data_dir/output

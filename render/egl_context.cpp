@@ -64,9 +64,9 @@ bool make_context(EGLDisplay display, const std::string& platform, SharedContext
   }
   out.display = display;
   out.context = context;
-  out.description = fmt::format("{}, {}, {}", platform,
-                                reinterpret_cast<const char*>(glGetString(GL_RENDERER)),
-                                reinterpret_cast<const char*>(glGetString(GL_VERSION)));
+  out.description =
+      fmt::format("{}, {}, {}", platform, reinterpret_cast<const char*>(glGetString(GL_RENDERER)),
+                  reinterpret_cast<const char*>(glGetString(GL_VERSION)));
   eglMakeCurrent(display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
   return true;
 }
@@ -94,21 +94,18 @@ bool try_device_platform(const char* client_extensions, SharedContext& out, std:
   std::vector<EGLDeviceEXT> devices(static_cast<std::size_t>(count));
   query_devices(count, devices.data(), &count);
   for (EGLint i = 0; i < count; ++i) {
-    if (has_extension(query_device_string(devices[i], EGL_EXTENSIONS),
-                      "EGL_MESA_device_software"))
+    if (has_extension(query_device_string(devices[i], EGL_EXTENSIONS), "EGL_MESA_device_software"))
       continue;
     EGLDisplay display = get_platform_display(EGL_PLATFORM_DEVICE_EXT, devices[i], nullptr);
-    if (make_context(display, fmt::format("EGL_EXT_platform_device #{}", i), out, why))
-      return true;
+    if (make_context(display, fmt::format("EGL_EXT_platform_device #{}", i), out, why)) return true;
   }
   why += "EGL device platform: no usable GPU device; ";
   return false;
 }
 
-bool try_surfaceless_platform(const char* client_extensions, SharedContext& out,
-                              std::string& why) {
+bool try_surfaceless_platform(const char* client_extensions, SharedContext& out, std::string& why) {
   if (!has_extension(client_extensions, "EGL_MESA_platform_surfaceless")) {
-    why += "EGL_MESA_platform_surfaceless not offered (install libegl-mesa0); ";
+    why += "EGL_MESA_platform_surfaceless not offered; ";
     return false;
   }
   auto get_platform_display = reinterpret_cast<PFNEGLGETPLATFORMDISPLAYEXTPROC>(
@@ -117,9 +114,9 @@ bool try_surfaceless_platform(const char* client_extensions, SharedContext& out,
     why += "eglGetPlatformDisplayEXT missing; ";
     return false;
   }
-  return make_context(get_platform_display(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY,
-                                           nullptr),
-                      "EGL_MESA_platform_surfaceless", out, why);
+  return make_context(
+      get_platform_display(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, nullptr),
+      "EGL_MESA_platform_surfaceless", out, why);
 }
 
 std::mutex& context_mutex() {
@@ -140,10 +137,10 @@ const SharedContext& shared_context() {
     return made;
   }();
   if (context.context == EGL_NO_CONTEXT)
-    throw ProcessingError(fmt::format(
-        "render: no headless OpenGL ES 3 context: {}install a GPU EGL driver or Mesa "
-        "(libegl-mesa0, libgles2)",
-        context.description));
+    throw ProcessingError(
+        fmt::format("render: no headless OpenGL ES 3 context: {}install a GPU EGL driver or Mesa "
+                    "(libegl-mesa0, libgles2)",
+                    context.description));
   return context;
 }
 

@@ -16,7 +16,8 @@ class GlContextLock {
   GlContextLock(const GlContextLock&) = delete;
   GlContextLock& operator=(const GlContextLock&) = delete;
 
-  // e.g. "EGL_MESA_platform_surfaceless, llvmpipe (LLVM 15.0.6, 256 bits), OpenGL ES 3.2 Mesa 22.3.6"
+  // e.g. "EGL_MESA_platform_surfaceless, llvmpipe (LLVM 15.0.6, 256 bits), OpenGL ES 3.2
+  // Mesa 22.3.6"
   static std::string description();
 };
 

@@ -73,8 +73,8 @@ LafortuneMaterial parse_material(const std::filesystem::path& file, const xmlNod
   std::unique_ptr<xmlChar, decltype(xmlFree)> name(
       xmlGetProp(node, reinterpret_cast<const xmlChar*>("name")), xmlFree);
   if (!name || !*name.get())
-    throw InputError(fmt::format("{}: <material> lacks a name=\"…\" attribute; add one",
-                                 where(file, node)));
+    throw InputError(
+        fmt::format("{}: <material> lacks a name=\"…\" attribute; add one", where(file, node)));
   material.name = reinterpret_cast<const char*>(name.get());
   material.diffuse = rgb_child(file, node, "diffuse");
   for (const xmlNode* c = node->children; c; c = c->next) {
@@ -86,9 +86,10 @@ LafortuneMaterial parse_material(const std::filesystem::path& file, const xmlNod
         {rgb_child(file, c, "cxy"), rgb_child(file, c, "cz"), rgb_child(file, c, "n")});
     for (double n : material.lobes.back().exponent)
       if (n <= 0.0)
-        throw InputError(fmt::format("{}: material '{}' has a lobe exponent {} ≤ 0; exponents "
-                                     "must be positive",
-                                     where(file, c), material.name, n));
+        throw InputError(
+            fmt::format("{}: material '{}' has a lobe exponent {} ≤ 0; exponents "
+                        "must be positive",
+                        where(file, c), material.name, n));
   }
   return material;
 }
@@ -98,22 +99,28 @@ LafortuneMaterial parse_material(const std::filesystem::path& file, const xmlNod
 std::vector<LafortuneMaterial> load_materials(const std::filesystem::path& file) {
   // A private parser context so that the error (with its line) is this file's, not another
   // thread's last error.
+  if (file.empty())
+    throw InputError(
+        "render: no materials file given (PlateSettings::materials_file); point it at "
+        "config/materials.xml");
+  if (!std::filesystem::is_regular_file(file))
+    throw InputError(
+        fmt::format("{}: materials file not found; set the path to "
+                    "config/materials.xml",
+                    file.string()));
   std::unique_ptr<xmlParserCtxt, decltype(&xmlFreeParserCtxt)> ctxt(xmlNewParserCtxt(),
-                                                                     xmlFreeParserCtxt);
+                                                                    xmlFreeParserCtxt);
   if (!ctxt) throw InputError("materials: out of memory creating the XML parser");
   XmlDoc doc(xmlCtxtReadFile(ctxt.get(), file.c_str(), nullptr,
                              XML_PARSE_NONET | XML_PARSE_NOERROR | XML_PARSE_NOWARNING),
              xmlFreeDoc);
   if (!doc) {
-    if (!std::filesystem::exists(file))
-      throw InputError(fmt::format("{}: materials file not found; set the path to "
-                                   "config/materials.xml", file.string()));
     const xmlError* error = xmlCtxtGetLastError(ctxt.get());
     std::string message = error && error->message ? error->message : "unreadable";
     while (!message.empty() && (message.back() == '\n' || message.back() == ' '))
       message.pop_back();
-    throw InputError(fmt::format("{}:{}: malformed XML: {}; fix the materials file",
-                                 file.string(), error ? error->line : 0, message));
+    throw InputError(fmt::format("{}:{}: malformed XML: {}; fix the materials file", file.string(),
+                                 error ? error->line : 0, message));
   }
   const xmlNode* root = xmlDocGetRootElement(doc.get());
   if (!root || !is_element(root, "materials"))
@@ -124,8 +131,8 @@ std::vector<LafortuneMaterial> load_materials(const std::filesystem::path& file)
     materials.push_back(parse_material(file, c));
     for (std::size_t i = 0; i + 1 < materials.size(); ++i)
       if (materials[i].name == materials.back().name)
-        throw InputError(fmt::format("{}: material '{}' is defined twice; keep one",
-                                     where(file, c), materials.back().name));
+        throw InputError(fmt::format("{}: material '{}' is defined twice; keep one", where(file, c),
+                                     materials.back().name));
   }
   if (materials.empty())
     throw InputError(fmt::format("{}: no <material> presets; add at least one", file.string()));

@@ -19,7 +19,7 @@ struct LafortuneLobe {
 
 struct LafortuneMaterial {
   std::string name;
-  RgbCoefficients diffuse{};          // reflectance; the BRDF term is diffuse / pi
+  RgbCoefficients diffuse{};         // reflectance; the BRDF term is diffuse / pi
   std::vector<LafortuneLobe> lobes;  // at most kMaxLafortuneLobes
 };
 

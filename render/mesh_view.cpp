@@ -85,14 +85,10 @@ vec3 lafortune(vec3 n, vec3 wo, vec3 wi) {
 }
 
 float key_light_visibility() {
+  // One comparison tap: with linear filtering on a depth texture it is a bilinear 2×2
+  // percentage-closer filter, enough for soft-edged shadows at one texel.
   vec3 p = v_shadow_clip.xyz / v_shadow_clip.w * 0.5 + 0.5;
-  // 3×3 percentage-closer filtering (each tap is itself a bilinear 2×2 comparison).
-  float lit = 0.0;
-  vec2 texel = 1.0 / vec2(textureSize(u_shadow_map, 0));
-  for (int dy = -1; dy <= 1; ++dy)
-    for (int dx = -1; dx <= 1; ++dx)
-      lit += texture(u_shadow_map, vec3(p.xy + vec2(dx, dy) * texel, p.z));
-  return lit / 9.0;
+  return texture(u_shadow_map, p);
 }
 
 void main() {
@@ -223,8 +219,9 @@ void validate(const Mesh& mesh, const OrthoCamera& camera, const Lighting& light
   if (mesh.empty()) throw InputError("render: the mesh to render has no vertices");
   for (const Vec3f& p : mesh.vertices.points)
     if (!p.allFinite())
-      throw InputError("render: the mesh has a non-finite vertex (NaN/inf); remove invalid "
-                       "points before rendering");
+      throw InputError(
+          "render: the mesh has a non-finite vertex (NaN/inf); remove invalid "
+          "points before rendering");
   const auto n = static_cast<std::uint32_t>(mesh.vertices.size());
   for (const Triangle& t : mesh.triangles)
     if (t[0] >= n || t[1] >= n || t[2] >= n)
@@ -237,6 +234,21 @@ void validate(const Mesh& mesh, const OrthoCamera& camera, const Lighting& light
       std::count_if(lighting.lights.begin(), lighting.lights.end(),
                     [](const DirectionalLight& l) { return l.casts_shadow; }) > 1)
     throw InputError(fmt::format("render: at most {} lights, one casting shadows", kMaxLights));
+}
+
+// Compiled once per process: the context lives as long as the process, and compiling costs
+// more than a small render on llvmpipe. Only called with the context current (lock held).
+// Never destroyed: at exit no context is current to delete them in.
+const Program& shading_program() {
+  static Program& program = *new Program;
+  if (!program.id) link(program, kVertexShader, kFragmentShader);
+  return program;
+}
+
+const Program& shadow_program() {
+  static Program& program = *new Program;
+  if (!program.id) link(program, kVertexShader, kShadowFragmentShader);
+  return program;
 }
 
 struct MeshBuffers {
@@ -324,8 +336,7 @@ Eigen::Matrix4f render_shadow_map(const Mesh& mesh, const MeshBuffers& buffers,
   if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
     throw ProcessingError("render: the shadow-map framebuffer is incomplete");
 
-  Program program;
-  link(program, kVertexShader, kShadowFragmentShader);
+  const Program& program = shadow_program();
   glUseProgram(program.id);
   glUniformMatrix4fv(program.uniform("u_world_to_clip"), 1, GL_FALSE, world_to_shadow_clip.data());
   glUniform1f(program.uniform("u_point_size"), point_size);
@@ -374,8 +385,8 @@ RgbaImage render_mesh(const Mesh& mesh, const LafortuneMaterial& material,
   upload(mesh, buffers);
   const float point_size =
       mesh.triangles.empty()
-          ? static_cast<float>(std::clamp(1.5 * point_spacing_mm(mesh.vertices) / camera.pixel_mm,
-                                          1.0, 64.0))
+          ? static_cast<float>(
+                std::clamp(1.5 * point_spacing_mm(mesh.vertices) / camera.pixel_mm, 1.0, 64.0))
           : 1.0f;
 
   // Depth range of the mesh in the view, padded so nothing is clipped by the near/far planes.
@@ -399,9 +410,9 @@ RgbaImage render_mesh(const Mesh& mesh, const LafortuneMaterial& material,
   for (std::size_t i = 0; i < lighting.lights.size(); ++i)
     if (lighting.lights[i].casts_shadow) {
       shadow_light = static_cast<int>(i);
-      world_to_shadow_clip = render_shadow_map(mesh, buffers, camera.world_to_view,
-                                               lighting.lights[i].towards_light, point_size,
-                                               shadow_map);
+      world_to_shadow_clip =
+          render_shadow_map(mesh, buffers, camera.world_to_view, lighting.lights[i].towards_light,
+                            point_size, shadow_map);
     }
   if (shadow_light < 0) {
     // The sampler must still be complete: a 1×1 map at depth 1 lights everything.
@@ -428,12 +439,12 @@ RgbaImage render_mesh(const Mesh& mesh, const LafortuneMaterial& material,
   glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, colour.id);
   glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth.id);
   if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
-    throw ProcessingError(fmt::format("render: a {}×{} px framebuffer is incomplete (out of "
-                                      "memory?); lower the dpi",
-                                      camera.width_px, camera.height_px));
+    throw ProcessingError(
+        fmt::format("render: a {}×{} px framebuffer is incomplete (out of "
+                    "memory?); lower the dpi",
+                    camera.width_px, camera.height_px));
 
-  Program program;
-  link(program, kVertexShader, kFragmentShader);
+  const Program& program = shading_program();
   glUseProgram(program.id);
   glUniformMatrix4fv(program.uniform("u_world_to_clip"), 1, GL_FALSE, world_to_clip.data());
   glUniformMatrix4fv(program.uniform("u_world_to_view"), 1, GL_FALSE, world_to_view.data());
@@ -476,9 +487,7 @@ RgbaImage render_mesh(const Mesh& mesh, const LafortuneMaterial& material,
   glUniform1f(program.uniform("u_exposure"), static_cast<GLfloat>(lighting.exposure));
   glUniform1i(program.uniform("u_srgb_encode"), lighting.srgb_encode);
   // Clamp infinities: GLSL ES need not represent them in uniforms.
-  const auto finite = [](double v) {
-    return static_cast<GLfloat>(std::clamp(v, -1e30, 1e30));
-  };
+  const auto finite = [](double v) { return static_cast<GLfloat>(std::clamp(v, -1e30, 1e30)); };
   glUniform2f(program.uniform("u_keep_x"), finite(camera.keep_x_min_mm),
               finite(camera.keep_x_max_mm));
 

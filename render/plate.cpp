@@ -6,10 +6,10 @@
 #include "render/png_writer.h"
 #include "render/profile_drawing.h"
 
-#include <Eigen/Eigenvalues>
 #include <cairo.h>
 #include <fmt/format.h>
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -51,17 +51,34 @@ Canvas make_canvas(const DrawingBounds& content, double pixel_mm) {
   return canvas;
 }
 
-// The GL camera on the plate's pixel grid; `world_to_drawing` maps the mesh into drawing
-// coordinates (u, v, towards the viewer).
-OrthoCamera camera_on(const Canvas& canvas, const Pose& world_to_drawing) {
+// A GL camera on the plate's pixel grid covering `region` (drawing mm), and where its image goes
+// on the plate. Rendering only the region, not the whole plate, saves most of the GL work.
+struct PlacedCamera {
   OrthoCamera camera;
+  int column = 0, row = 0;  // the image's top-left pixel on the plate
+};
+
+PlacedCamera camera_on(const Canvas& canvas, const Pose& world_to_drawing,
+                       const DrawingBounds& region) {
+  const double pixel = canvas.pixel_mm;
+  const int i0 = std::max(0, static_cast<int>(std::floor((region.u_min - canvas.u0) / pixel)) - 1);
+  const int i1 =
+      std::min(canvas.width, static_cast<int>(std::ceil((region.u_max - canvas.u0) / pixel)) + 1);
+  const int j0 =
+      std::max(0, static_cast<int>(std::floor((canvas.v_top - region.v_max) / pixel)) - 1);
+  const int j1 = std::min(canvas.height,
+                          static_cast<int>(std::ceil((canvas.v_top - region.v_min) / pixel)) + 1);
+  PlacedCamera placed;
+  placed.column = i0;
+  placed.row = j0;
+  OrthoCamera& camera = placed.camera;
   camera.world_to_view = world_to_drawing;
-  camera.left_mm = canvas.u0;
-  camera.bottom_mm = canvas.v_top - canvas.height * canvas.pixel_mm;
-  camera.pixel_mm = canvas.pixel_mm;
-  camera.width_px = canvas.width;
-  camera.height_px = canvas.height;
-  return camera;
+  camera.left_mm = canvas.u0 + i0 * pixel;
+  camera.bottom_mm = canvas.v_top - j1 * pixel;
+  camera.pixel_mm = pixel;
+  camera.width_px = i1 - i0;
+  camera.height_px = j1 - j0;
+  return placed;
 }
 
 DrawingBounds mesh_bounds(const Mesh& mesh, const Pose& world_to_drawing) {
@@ -75,7 +92,7 @@ DrawingBounds mesh_bounds(const Mesh& mesh, const Pose& world_to_drawing) {
 }
 
 // The footer below the drawing: scale bar, then the text lines.
-double footer_height_mm(std::size_t lines) { return 10.0 + kLineMm * lines; }
+double footer_height_mm(std::size_t lines) { return 12.0 + kLineMm * lines; }
 
 double text_width_mm(const std::vector<std::string>& lines) {
   Surface scratch(cairo_image_surface_create(CAIRO_FORMAT_ARGB32, 1, 1), cairo_surface_destroy);
@@ -109,15 +126,15 @@ Cairo drawing_context(cairo_surface_t* surface, const Canvas& canvas) {
   return cr;
 }
 
-// Composites a rendered view (same pixel grid as the canvas) over the plate.
-void paste(cairo_t* cr, RgbaImage& view) {
+// Composites a rendered view (on the canvas's pixel grid) over the plate at pixel (column, row).
+void paste(cairo_t* cr, RgbaImage& view, int column, int row) {
   // Reorder in place into cairo's premultiplied native-endian ARGB32 (4 bytes per pixel, so the
   // stride is width × 4 as cairo wants).
   for (std::size_t i = 0; i < view.rgba.size(); i += 4) {
     const std::uint32_t a = view.rgba[i + 3];
     const auto pre = [a](std::uint32_t c) { return (c * a + 127) / 255; };
-    const std::uint32_t argb =
-        (a << 24) | (pre(view.rgba[i]) << 16) | (pre(view.rgba[i + 1]) << 8) | pre(view.rgba[i + 2]);
+    const std::uint32_t argb = (a << 24) | (pre(view.rgba[i]) << 16) |
+                               (pre(view.rgba[i + 1]) << 8) | pre(view.rgba[i + 2]);
     std::memcpy(&view.rgba[i], &argb, 4);
   }
   Surface image(cairo_image_surface_create_for_data(view.rgba.data(), CAIRO_FORMAT_ARGB32,
@@ -125,7 +142,7 @@ void paste(cairo_t* cr, RgbaImage& view) {
                 cairo_surface_destroy);
   cairo_save(cr);
   cairo_identity_matrix(cr);
-  cairo_set_source_surface(cr, image.get(), 0, 0);
+  cairo_set_source_surface(cr, image.get(), column, row);
   cairo_paint(cr);
   cairo_restore(cr);
 }
@@ -175,7 +192,7 @@ void text(cairo_t* cr, const Canvas& canvas, double u, double v, const std::stri
 // Scale bar (alternate centimetres filled) and text lines, from the top-left corner (u, v).
 void draw_footer(cairo_t* cr, const Canvas& canvas, double u, double v,
                  const std::vector<std::string>& lines) {
-  const double bar_v = v - 4.0;
+  const double bar_v = v - 6.0;  // clear of the axis line's end
   cairo_set_source_rgb(cr, 0, 0, 0);
   cairo_set_line_width(cr, 0.2);
   for (int cm = 0; cm < static_cast<int>(kScaleBarMm / 10.0); ++cm) {
@@ -247,8 +264,7 @@ std::string scale_line(const PlateSettings& settings) {
   return fmt::format("1:1 at {} dpi   material {}", settings.dpi, settings.material);
 }
 
-std::vector<std::string> measurement_lines(const PlateInput& input,
-                                           const PlateSettings& settings) {
+std::vector<std::string> measurement_lines(const PlateInput& input, const PlateSettings& settings) {
   const profile::Measurements& m = input.analysis->measurements;
   std::string sizes;
   if (m.rim_diameter_mm) sizes += fmt::format("rim Ø {:.1f} mm   ", *m.rim_diameter_mm);
@@ -279,8 +295,8 @@ PlateFiles axial_plate(const PlateInput& input, const PlateSettings& settings,
   // azimuth −90°; the exterior half is x < 0 when the section is on the right.
   const auto [arc_start, arc_extent] = arc_of(*input.mesh, world_to_sherd);
   const double facing = -std::numbers::pi / 2;
-  const double turn = settings.section_on_right ? facing - (arc_start + arc_extent)
-                                                : facing - arc_start;
+  const double turn =
+      settings.section_on_right ? facing - (arc_start + arc_extent) : facing - arc_start;
   Eigen::Matrix3d sherd_to_drawing;  // (x, y, z) → (u = x, v = z, towards viewer = −y)
   sherd_to_drawing << 1, 0, 0, 0, 0, 1, 0, -1, 0;
   const Pose world_to_drawing =
@@ -289,21 +305,23 @@ PlateFiles axial_plate(const PlateInput& input, const PlateSettings& settings,
   const ProfileDrawing drawing = make_profile_drawing(analysis, settings.section_on_right);
   DrawingBounds content = drawing.bounds;
   DrawingBounds view = mesh_bounds(*input.mesh, world_to_drawing);
-  if (exterior_side < 0) view.u_max = std::min(view.u_max, 0.0);
-  else view.u_min = std::max(view.u_min, 0.0);
+  if (exterior_side < 0)
+    view.u_max = std::min(view.u_max, 0.0);
+  else
+    view.u_min = std::max(view.u_min, 0.0);
   content.include(view);
   const std::vector<std::string> lines = measurement_lines(input, settings);
   const double footer_v = content.v_min;
   reserve_footer(content, lines);
   const Canvas canvas = make_canvas(content, 25.4 / settings.dpi);
 
-  OrthoCamera camera = camera_on(canvas, world_to_drawing);
-  (exterior_side < 0 ? camera.keep_x_max_mm : camera.keep_x_min_mm) = 0.0;
-  RgbaImage exterior = render_mesh(*input.mesh, material, camera, drawing_lighting());
+  PlacedCamera placed = camera_on(canvas, world_to_drawing, view);
+  (exterior_side < 0 ? placed.camera.keep_x_max_mm : placed.camera.keep_x_min_mm) = 0.0;
+  RgbaImage exterior = render_mesh(*input.mesh, material, placed.camera, drawing_lighting());
 
   Surface surface = plate_surface(canvas);
   Cairo cr = drawing_context(surface.get(), canvas);
-  paste(cr.get(), exterior);
+  paste(cr.get(), exterior, placed.column, placed.row);
   draw_profile(cr.get(), drawing);
   draw_footer(cr.get(), canvas, content.u_min, footer_v, lines);
   write_profile_svg(dir / "profile.svg", drawing, kMarginMm);
@@ -341,14 +359,13 @@ PlateFiles body_plate(const PlateInput& input, const PlateSettings& settings,
 
   Pose front_pose = Pose(front) * Eigen::Translation3d(-centroid);
   Pose back_pose = Pose(back) * Eigen::Translation3d(-centroid);
-  DrawingBounds front_bounds = mesh_bounds(*input.mesh, front_pose);
-  const DrawingBounds back_bounds = mesh_bounds(*input.mesh, back_pose);
+  const DrawingBounds front_bounds = mesh_bounds(*input.mesh, front_pose);
   // Place the back view to the right of the front view.
-  const double shift = front_bounds.u_max + kViewGapMm - back_bounds.u_min;
+  const double shift = front_bounds.u_max + kViewGapMm - mesh_bounds(*input.mesh, back_pose).u_min;
   back_pose = Eigen::Translation3d(shift, 0, 0) * back_pose;
+  const DrawingBounds back_bounds = mesh_bounds(*input.mesh, back_pose);
   DrawingBounds content = front_bounds;
-  content.include(back_bounds.u_min + shift, back_bounds.v_min);
-  content.include(back_bounds.u_max + shift, back_bounds.v_max);
+  content.include(back_bounds);
 
   const std::string reason = input.analysis && !input.analysis->axis.reason.empty()
                                  ? input.analysis->axis.reason
@@ -356,19 +373,22 @@ PlateFiles body_plate(const PlateInput& input, const PlateSettings& settings,
   const std::vector<std::string> lines = {
       header_line(input), fmt::format("body sherd ({}): exterior front and back", reason),
       scale_line(settings)};
-  const double footer_v = content.v_min - 3.0;  // room for the view captions
+  const double caption_v = content.v_min - 4.0;  // baselines of "front" and "back"
+  const double footer_v = content.v_min - 5.0;
   reserve_footer(content, lines);
-  content.v_min -= 3.0;
+  content.v_min -= 5.0;
   const Canvas canvas = make_canvas(content, 25.4 / settings.dpi);
 
   Surface surface = plate_surface(canvas);
   Cairo cr = drawing_context(surface.get(), canvas);
-  for (const Pose& pose : {front_pose, back_pose}) {
-    RgbaImage view = render_mesh(*input.mesh, material, camera_on(canvas, pose), drawing_lighting());
-    paste(cr.get(), view);
+  for (const auto& [pose, bounds] :
+       {std::pair{front_pose, front_bounds}, {back_pose, back_bounds}}) {
+    const PlacedCamera placed = camera_on(canvas, pose, bounds);
+    RgbaImage view = render_mesh(*input.mesh, material, placed.camera, drawing_lighting());
+    paste(cr.get(), view, placed.column, placed.row);
   }
-  text(cr.get(), canvas, front_bounds.u_min, footer_v + 1.0, "front");
-  text(cr.get(), canvas, back_bounds.u_min + shift, footer_v + 1.0, "back");
+  text(cr.get(), canvas, front_bounds.u_min, caption_v, "front");
+  text(cr.get(), canvas, back_bounds.u_min, caption_v, "back");
   draw_footer(cr.get(), canvas, content.u_min, footer_v, lines);
   write_no_section_svg(dir / "profile.svg", reason);
   return finish(surface.get(), canvas, settings, dir);
@@ -386,15 +406,16 @@ PlateFiles render_plate(const PlateInput& input, const PlateSettings& settings,
                                  settings.dpi, kMinDpi, kMaxDpi));
   for (const Vec3f& p : input.mesh->vertices.points)
     if (!p.allFinite())
-      throw InputError(fmt::format("render: sherd '{}' has a non-finite vertex; remove invalid "
-                                   "points first",
-                                   input.sherd_id));
+      throw InputError(
+          fmt::format("render: sherd '{}' has a non-finite vertex; remove invalid "
+                      "points first",
+                      input.sherd_id));
   const LafortuneMaterial material = find_material(settings.materials_file, settings.material);
   std::error_code error;
   std::filesystem::create_directories(dir, error);
   if (error)
-    throw ProcessingError(fmt::format("{}: cannot create the plate directory ({})", dir.string(),
-                                      error.message()));
+    throw ProcessingError(
+        fmt::format("{}: cannot create the plate directory ({})", dir.string(), error.message()));
   if (input.analysis && input.analysis->axis.found)
     return axial_plate(input, settings, material, dir);
   return body_plate(input, settings, material, dir);

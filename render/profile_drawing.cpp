@@ -15,9 +15,10 @@ constexpr double kAxisOverhangMm = 4.0;  // the axis line reaches a little past 
 
 void check_polyline(const profile::Polyline2& line, const char* which) {
   if (line.size() < 2)
-    throw InputError(fmt::format("render: the {} profile has {} points; a section needs at least "
-                                 "2 (was the profile extracted?)",
-                                 which, line.size()));
+    throw InputError(
+        fmt::format("render: the {} profile has {} points; a section needs at least "
+                    "2 (was the profile extracted?)",
+                    which, line.size()));
   for (const auto& [r, z] : line)
     if (!std::isfinite(r) || !std::isfinite(z))
       throw InputError(fmt::format("render: the {} profile has a non-finite point", which));
@@ -32,7 +33,8 @@ std::array<double, 2> extreme_z(const profile::Polyline2& line, bool highest) {
 
 std::string svg_points(const profile::Polyline2& line) {
   std::string points;
-  for (const auto& [u, v] : line) points += fmt::format("{}{:.4f},{:.4f}", points.empty() ? "" : " ", u, -v);
+  for (const auto& [u, v] : line)
+    points += fmt::format("{}{:.4f},{:.4f}", points.empty() ? "" : " ", u, -v);
   return points;
 }
 
@@ -41,9 +43,10 @@ void write_text(const std::filesystem::path& file, const std::string& text) {
   out << text;
   out.close();
   if (!out)
-    throw ProcessingError(fmt::format("{}: cannot write the profile SVG; check the output "
-                                      "directory",
-                                      file.string()));
+    throw ProcessingError(
+        fmt::format("{}: cannot write the profile SVG; check the output "
+                    "directory",
+                    file.string()));
 }
 
 }  // namespace
@@ -130,19 +133,25 @@ void write_profile_svg(const std::filesystem::path& file, const ProfileDrawing& 
 void write_no_section_svg(const std::filesystem::path& file, const std::string& reason) {
   std::string escaped;
   for (char c : reason) {
-    if (c == '<') escaped += "&lt;";
-    else if (c == '>') escaped += "&gt;";
-    else if (c == '&') escaped += "&amp;";
-    else escaped += c;
+    if (c == '<')
+      escaped += "&lt;";
+    else if (c == '>')
+      escaped += "&gt;";
+    else if (c == '&')
+      escaped += "&amp;";
+    else
+      escaped += c;
   }
-  write_text(file, fmt::format(
-      "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
-      "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"120mm\" height=\"10mm\" "
-      "viewBox=\"0 0 120 10\">\n"
-      "  <desc>sherdscan profile: 1 user unit = 1 mm; no section: {0}</desc>\n"
-      "  <text x=\"2\" y=\"6\" font-size=\"3.5\" font-family=\"sans-serif\">no section: {0}"
-      "</text>\n</svg>\n",
-      escaped));
+  write_text(
+      file,
+      fmt::format(
+          "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
+          "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"120mm\" height=\"10mm\" "
+          "viewBox=\"0 0 120 10\">\n"
+          "  <desc>sherdscan profile: 1 user unit = 1 mm; no section: {0}</desc>\n"
+          "  <text x=\"2\" y=\"6\" font-size=\"3.5\" font-family=\"sans-serif\">no section: {0}"
+          "</text>\n</svg>\n",
+          escaped));
 }
 
 }  // namespace sherd::render

@@ -23,10 +23,10 @@ struct HorizontalLine {
 
 struct ProfileDrawing {
   double axis_v_min = 0.0, axis_v_max = 0.0;  // the dash-dot axis line at u = 0
-  profile::Polyline2 section;           // closed polygon: outer profile, then inner reversed
-  profile::Polyline2 exterior_outline;  // the outer profile mirrored onto the exterior side
+  profile::Polyline2 section;                 // closed polygon: outer profile, then inner reversed
+  profile::Polyline2 exterior_outline;        // the outer profile mirrored onto the exterior side
   std::optional<HorizontalLine> rim_line, base_line;  // across both halves
-  DrawingBounds bounds;                 // of everything above
+  DrawingBounds bounds;                               // of everything above
 };
 
 // Section at +r when `section_on_right`, else at −r (mirrored); the exterior on the other side.

@@ -26,7 +26,10 @@ Mesh make_plate(const Rgb8& colour, Rng& rng) {
   const double R = kPlateRadiusMm, t = kPlateThicknessMm;
   const std::vector<Point2> section{{0, -t}, {R, -t}, {R, -t}, {R, 0}, {R, 0},
                                     {100, 0}, {50, 0}, {0, 0}};
-  return revolve_section(section, std::vector<Rgb8>(section.size(), colour), rng);
+  Mesh plate = revolve_section(section, std::vector<Rgb8>(section.size(), colour), rng);
+  // A plain, even colour (no clay mottling): the background that segmentation removes.
+  plate.vertices.colours.assign(plate.vertices.size(), colour);
+  return plate;
 }
 
 // A box with axes `pose.linear()` columns, centred at pose.translation(), half extents `half`;
@@ -126,6 +129,22 @@ SceneObject make_object(std::string name, int label, Mesh mesh) {
   return object;
 }
 
+// Records sherd `index` (placed by `pose`, vessel frame → world) as object and truth.
+void add_sherd(Scene& scene, int index, const VesselProfile& profile, const SherdPiece& piece,
+               const Pose& pose, Mesh placed) {
+  SherdTruth truth = make_truth(index, profile, piece.mesh, pose);
+  truth.has_rim = piece.has_rim;
+  truth.has_base = piece.has_base;
+  if (piece.has_rim) {
+    truth.rim_diameter_mm = 2.0 * profile.rim_radius();
+    truth.rim_percent = piece.rim_arc_rad / (2 * kPi) * 100.0;
+  }
+  truth.arc_deg = piece.arc_rad * 180.0 / kPi;
+  truth.bbox = Box3::of(placed.vertices);
+  scene.truth.push_back(truth);
+  scene.objects.push_back(make_object(truth.id, index + 1, std::move(placed)));
+}
+
 // Where the frame's sherds stand: evenly around a ring, or at the centre for a single one.
 double frame_ring_radius(int sherds) { return sherds <= 1 ? 0.0 : kFrameRingRadiusMm; }
 
@@ -189,17 +208,7 @@ void place_frame(Scene& scene, Rng& master, const Rgb8& bg) {
     append_mesh(frame, make_box(plinth, {0.5 * (a1 - a0) + 6.0, 0.5 * (b1 - b0) + 6.0,
                                          kFrameHeightMm / 2}, bg));
 
-    SherdTruth truth = make_truth(i, profile, piece.mesh, pose);
-    truth.has_rim = piece.has_rim;
-    truth.has_base = piece.has_base;
-    if (piece.has_rim) {
-      truth.rim_diameter_mm = 2.0 * profile.rim_radius();
-      truth.rim_percent = piece.rim_arc_rad / (2 * kPi) * 100.0;
-    }
-    truth.arc_deg = piece.arc_rad * 180.0 / kPi;
-    truth.bbox = Box3::of(placed.vertices);
-    scene.truth.push_back(truth);
-    scene.objects.push_back(make_object(truth.id, i + 1, std::move(placed)));
+    add_sherd(scene, i, profile, piece, pose, std::move(placed));
   }
   if (k > 0) scene.objects.insert(scene.objects.begin() + 1, make_object("frame", 0, frame));
 }
@@ -221,77 +230,71 @@ void place_empty_frame(Scene& scene, const Rgb8& bg) {
 
 void place_on_plate(Scene& scene, Rng& master) {
   const int k = scene.spec.sherds;
-  // About a third of the plate's area covered at most.
+  // About a quarter of the plate's area covered.
   const double plate_area = kPi * (kPlateRadiusMm - 5.0) * (kPlateRadiusMm - 5.0);
-  const double max_extent = std::clamp(std::sqrt(0.3 * plate_area / std::max(k, 1)), 40.0, 110.0);
-  struct Footprint {
-    Vec3d centre;
-    double radius;
-  };
-  std::vector<Footprint> taken;
+  const double first_extent =
+      std::clamp(std::sqrt(0.25 * plate_area / std::max(k, 1)), 40.0, 100.0);
+  std::vector<std::pair<Vec3d, double>> taken;  // footprint circles: centre, radius
   for (int i = 0; i < k; ++i) {
     Rng rng = master.fork();
-    const VesselProfile profile = make_vessel_profile(
-        random_family(rng), rng, {.max_diameter_mm = 4.5 * (max_extent - 8.0)});
-    const ClayColours clay = random_clay(rng);
-    SherdPiece piece = break_sherd(profile, clay, rng, max_extent);
-
-    // Lying with the outer face up or down, turned at random about the vertical.
-    const double facing = rng.chance(0.5) ? 1.0 : -1.0;
-    const double beta = rng.uniform(0.0, 2 * kPi);
-    const Vec3d n_to = facing * Vec3d::UnitZ();
-    const Vec3d a_to(std::cos(beta), std::sin(beta), 0.0);
-    Pose pose = Pose::Identity();
-    pose.linear() = orient(piece.centre_normal, n_to, a_to.cross(n_to), a_to);
-    Mesh placed = piece.mesh;
-    placed.vertices.transform(pose);
-    const Box3 box = Box3::of(placed.vertices);
-    const double radius = 0.5 * Eigen::Vector2d(box.extent().x(), box.extent().y()).norm();
-
-    // Rejection sampling of a free spot on the plate (deterministic: the seed fixes the draws).
-    std::optional<Vec3d> spot;
-    for (int attempt = 0; attempt < 2000 && !spot; ++attempt) {
+    // Break a piece and look for a free spot (rejection sampling); where none is left, break a
+    // smaller piece: the seed still fixes everything.
+    for (double max_extent = first_extent;; max_extent = std::max(38.0, 0.8 * max_extent)) {
+      const VesselProfile profile = make_vessel_profile(
+          random_family(rng), rng, {.max_diameter_mm = 4.5 * (max_extent - 8.0)});
+      const ClayColours clay = random_clay(rng);
+      const SherdPiece piece = break_sherd(profile, clay, rng, max_extent);
+      // Lying with the outer face up or down, turned at random about the vertical.
+      const double facing = rng.chance(0.5) ? 1.0 : -1.0;
+      const double beta = rng.uniform(0.0, 2 * kPi);
+      const Vec3d n_to = facing * Vec3d::UnitZ();
+      const Vec3d a_to(std::cos(beta), std::sin(beta), 0.0);
+      Pose pose = Pose::Identity();
+      pose.linear() = orient(piece.centre_normal, n_to, a_to.cross(n_to), a_to);
+      Mesh placed = piece.mesh;
+      placed.vertices.transform(pose);
+      const Box3 box = Box3::of(placed.vertices);
+      const double radius = 0.5 * Eigen::Vector2d(box.extent().x(), box.extent().y()).norm();
       const double reach = kPlateRadiusMm - 5.0 - radius;
-      const Vec3d c(rng.uniform(-reach, reach), rng.uniform(-reach, reach), 0.0);
-      if (reach <= 0.0 || c.norm() > reach) continue;
-      const bool free = std::all_of(taken.begin(), taken.end(), [&](const Footprint& f) {
-        return (f.centre - c).norm() > f.radius + radius + 4.0;
-      });
-      if (free) spot = c;
+      std::optional<Vec3d> spot;
+      for (int attempt = 0; attempt < 2000 && !spot && reach > 0.0; ++attempt) {
+        const Vec3d c(rng.uniform(-reach, reach), rng.uniform(-reach, reach), 0.0);
+        if (c.norm() > reach) continue;
+        const bool free = std::all_of(taken.begin(), taken.end(), [&](const auto& other) {
+          return (other.first - c).norm() > other.second + radius + 4.0;
+        });
+        if (free) spot = c;
+      }
+      if (!spot) {
+        if (max_extent > 38.0) continue;
+        throw InputError(fmt::format(
+            "sherd simulator: cannot lay {} sherds on the {:.0f} mm plate without overlap "
+            "(seed {}): use fewer sherds or another seed",
+            k, 2 * kPlateRadiusMm, scene.spec.seed));
+      }
+      taken.emplace_back(*spot, radius);
+      pose.pretranslate(Vec3d(spot->x() - 0.5 * (box.min.x() + box.max.x()),
+                              spot->y() - 0.5 * (box.min.y() + box.max.y()), -box.min.z()));
+      placed = piece.mesh;
+      placed.vertices.transform(pose);
+      add_sherd(scene, i, profile, piece, pose, std::move(placed));
+      break;
     }
-    if (!spot) {
-      throw InputError(fmt::format(
-          "sherd simulator: cannot lay {} sherds on the {:.0f} mm plate without overlap "
-          "(seed {}): use fewer sherds or another seed",
-          k, 2 * kPlateRadiusMm, scene.spec.seed));
-    }
-    taken.push_back({*spot, radius});
-    pose.pretranslate(Vec3d(spot->x() - 0.5 * (box.min.x() + box.max.x()),
-                            spot->y() - 0.5 * (box.min.y() + box.max.y()), -box.min.z()));
-    placed = piece.mesh;
-    placed.vertices.transform(pose);
-
-    SherdTruth truth = make_truth(i, profile, piece.mesh, pose);
-    truth.has_rim = piece.has_rim;
-    truth.has_base = piece.has_base;
-    if (piece.has_rim) {
-      truth.rim_diameter_mm = 2.0 * profile.rim_radius();
-      truth.rim_percent = piece.rim_arc_rad / (2 * kPi) * 100.0;
-    }
-    truth.arc_deg = piece.arc_rad * 180.0 / kPi;
-    truth.bbox = Box3::of(placed.vertices);
-    scene.truth.push_back(truth);
-    scene.objects.push_back(make_object(truth.id, i + 1, std::move(placed)));
   }
 }
 
 void place_vessel(Scene& scene, Rng& master) {
   Rng rng = master.fork();
-  const VesselProfile profile = make_vessel_profile(
-      random_family(rng), rng, {.max_diameter_mm = 270.0, .max_height_mm = 250.0});
+  // An amphora scaled down to the scanner's view would be a toy (rim < 60 mm): whole vessels on
+  // the plate are bowls, plates, beakers and jars.
+  const auto family = static_cast<Family>(rng.integer(0, 3));
+  const VesselProfile profile =
+      make_vessel_profile(family, rng, {.max_diameter_mm = 260.0, .max_height_mm = 175.0});
   const ClayColours clay = random_clay(rng);
   const Mesh mesh = revolve_vessel(profile, clay, rng);
-  // Not quite centred, as an operator puts it down.
+  // At most ~185 mm tall with foot and lip: the default scanner (camera at 260 mm, looking at
+  // z = 50 mm) sees up to about 190 mm above the plate centre. Not quite centred, as an operator
+  // puts it down.
   Pose pose = Pose::Identity();
   pose.rotate(Eigen::AngleAxisd(rng.uniform(0.0, 2 * kPi), Vec3d::UnitZ()));
   pose.pretranslate(Vec3d(rng.uniform(-12.0, 12.0), rng.uniform(-12.0, 12.0), 0.0));

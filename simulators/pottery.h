@@ -3,11 +3,12 @@
 // turntable plate. Deterministic from a seed. Millimetres, world = turntable frame (z up).
 //
 // Scenes: a plate (disk, radius 150 mm, top at z = 0) in the background colour, plus
-//   Frame  — sherds standing on an edge in a low holding frame (plinths in the background colour)
-//            on a ring of radius 95 mm, faces turned radially, so that the turning plate shows
-//            both faces to a scanner looking from the side;
+//   Frame  — sherds standing on an edge in a low holding frame (8 mm plinths in the background
+//            colour, each sherd sunk 5 mm into its own) on a ring of radius 95 mm, faces turned
+//            radially, so that the turning plate shows both faces to a scanner from the side;
 //   Plate  — sherds lying on the plate, outer face up or down, not touching;
-//   Vessel — one complete vessel standing near the plate centre;
+//   Vessel — one complete vessel (bowl, plate, beaker or jar, ≤ 185 mm tall to stay in the
+//            default scanner's view) standing near the plate centre;
 //   Empty  — the plate and (when sherds > 0) the empty frame.
 //
 // truth.json (schema "sherdscan.truth/1"), the contract read by end-to-end tests and benchmarks:

@@ -118,6 +118,12 @@ Pose look_at_pose(const Vec3d& eye, const Vec3d& target) {
   return pose;
 }
 
+ScannerModel default_station_scanner() {
+  ScannerModel model;
+  model.scanner_to_world = look_at_pose({0.0, -420.0, 260.0}, {0.0, 0.0, 50.0});
+  return model;
+}
+
 SimulatedScanner::SimulatedScanner(Scene scene, ScannerModel model,
                                    std::function<double()> plate_angle)
     : scene_(std::move(scene)), model_(model), plate_angle_(std::move(plate_angle)) {

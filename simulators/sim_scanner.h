@@ -26,7 +26,12 @@ struct ScannerModel {
 };
 
 // The camera pose from an optical centre and a look-at point, image "up" towards world +z.
+// Throws InputError when eye == target or the view is straight up/down (no "up" then).
 Pose look_at_pose(const Vec3d& eye, const Vec3d& target);
+
+// The default station's scanner (config defaults): 640×480, fx = fy = 800, camera at
+// (0, −420, 260) mm looking at (0, 0, 50) mm; noise model as in ScannerModel.
+ScannerModel default_station_scanner();
 
 class SimulatedScanner : public drivers::Scanner {
  public:
@@ -35,7 +40,8 @@ class SimulatedScanner : public drivers::Scanner {
   std::string describe() const override;
   OrganisedView capture() override;
 
-  // Ground-truth label of every cell of the last capture: 0 background/none, k = truth[k-1].
+  // Ground-truth label of every cell of the last capture: k = scene.truth[k-1] for a valid cell
+  // on sherd (or vessel) k; 0 for the background and for cells without a measurement.
   const std::vector<int>& last_labels() const { return last_labels_; }
 
  private:

@@ -363,27 +363,28 @@ Mesh revolve_vessel(const VesselProfile& profile, const ClayColours& colours, Rn
 SherdPiece break_sherd(const VesselProfile& profile, const ClayColours& colours, Rng& rng,
                        double max_extent_mm) {
   if (!(max_extent_mm >= 30.0)) {
-    throw ProcessingError(fmt::format(
+    throw InputError(fmt::format(
         "sherd simulator: no room for a sherd ({:.0f} mm < 30 mm): use fewer sherds per scene",
         max_extent_mm));
   }
   const double S = profile.total_arc();
   const double s_wall = profile.arc[profile.wall_start];
   const double s_min = 0.35 * s_wall;  // base cuts stay away from the axis
-  const double extent = rng.uniform(30.0, max_extent_mm - 6.0 > 30.0 ? max_extent_mm - 6.0 : 30.0);
+  const double extent = rng.uniform(30.0, std::max(30.0, max_extent_mm - 6.0));  // along profile
 
-  // Where along the profile the piece lies: rim, base or body sherd.
+  // Where along the profile the piece lies: rim (45 %), base (25 %) or body sherd (30 %; a rim
+  // sherd where the wall is too short for a body sherd).
   double sa = 0.0, sb = 0.0;
-  const double kind = rng.uniform();
-  if (kind < 0.45 || S - s_wall < extent + 10.0) {
+  const double which = rng.uniform();
+  if (which < 0.45 || S - s_wall < extent + 10.0) {
     sb = S;
     sa = std::max(s_min, S - extent);
-  } else if (kind < 0.7) {
+  } else if (which < 0.7) {
     // A base sherd keeps the base angle (the join of base and wall), as a real one must to be
     // recognised as such; a fragment of flat floor alone tells nothing about the vessel.
     sa = s_wall * rng.uniform(0.35, 0.7);
     sb = std::min(S, std::max(sa + extent, s_wall + 15.0));
-    sa = std::max(sa, sb - std::max(extent, 30.0));
+    sa = std::max(sa, sb - extent);
   } else {
     sa = rng.uniform(s_wall + 3.0, S - extent - 3.0);
     sb = sa + extent;
@@ -492,6 +493,24 @@ SherdPiece break_sherd(const VesselProfile& profile, const ClayColours& colours,
     emit_grid(mesh, nl, nv, [&](int k, int j) {  // e_v × e_w
       return base + static_cast<std::uint32_t>(k * nv + j);
     });
+    // The broken ends of the lip: its half-ellipse section, closed by the side fracture's top
+    // edge (the chord from outer to inner rim), fanned from the outer rim edge.
+    for (int j : {0, nv - 1}) {
+      const double theta = T_uv[(nu - 1) * nv + j];
+      const Vec3f outward = (j == 0 ? -1.0f : 1.0f) *
+                            Vec3f(static_cast<float>(-std::sin(theta)),
+                                  static_cast<float>(std::cos(theta)), 0.0f);
+      const auto first = static_cast<std::uint32_t>(mesh.vertices.points.size());
+      for (int k = 0; k < nl; ++k) {
+        add_vertex(mesh, revolve(profile.lip[k], theta), mottle(colours.fracture, rng));
+      }
+      for (int k = 1; k + 1 < nl; ++k) {
+        Triangle t{first, first + k, first + k + 1};
+        const auto& P = mesh.vertices.points;
+        if ((P[t[1]] - P[t[0]]).cross(P[t[2]] - P[t[0]]).dot(outward) < 0) std::swap(t[1], t[2]);
+        mesh.triangles.push_back(t);
+      }
+    }
   }
   compute_vertex_normals(mesh);
 

@@ -64,7 +64,8 @@ Mesh revolve_section(const std::vector<Point2>& section, const std::vector<Rgb8>
 Mesh revolve_vessel(const VesselProfile& profile, const ClayColours& colours, Rng& rng);
 
 // A piece of the vessel between irregular fracture edges, in the vessel frame, centred on the
-// angle θ = 0. Its extents (along the profile and around the axis) stay below max_extent_mm.
+// angle θ = 0. Its extents (along the profile and around the axis) stay below max_extent_mm,
+// except where 5 % of a wide vessel's circumference is longer. InputError below 30 mm.
 struct SherdPiece {
   Mesh mesh;                    // closed: outer and inner skin, lip or fracture faces
   bool has_rim = false, has_base = false;

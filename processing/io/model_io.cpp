@@ -540,6 +540,7 @@ void write_view(const fs::path& file, const OrganisedView& view) {
                                                              Eigen::Quaternionf::Identity());
   const auto first_line_end = header.find('\n') + 1;
   header.insert(first_line_end, fmt::format("{}{}\n", kTimestampTag, view.timestamp_ns));
+  header += "DATA binary\n";  // PCDWriter::writeBinary appends this line itself, after the header
   write_atomically(file, [&](const fs::path& temp) {
     std::ofstream out(temp, std::ios::binary | std::ios::trunc);
     out << header;

@@ -27,7 +27,6 @@ constexpr double kTwoPi = 2.0 * M_PI;
 struct CylPoint {
   double r, h, phi;
   double n_r, n_h;  // normal components along the point's radial direction and the axis
-  double n_phi;     // tangential component (large on radial fracture faces)
 };
 
 struct Frame {
@@ -51,8 +50,7 @@ std::vector<CylPoint> cylindrical(const Cloud& cloud, const Frame& f) {
     const double r = std::hypot(px, py);
     const double phi = std::atan2(py, px);
     const Vec3d radial = r > 1e-9 ? Vec3d((px * f.x + py * f.y) / r) : f.x;
-    const Vec3d tangential = f.z.cross(radial);
-    out.push_back({r, d.dot(f.z), phi, n.dot(radial), n.dot(f.z), n.dot(tangential)});
+    out.push_back({r, d.dot(f.z), phi, n.dot(radial), n.dot(f.z)});
   }
   return out;
 }
@@ -153,7 +151,7 @@ struct EndShape {
   double coverage_share = 0.0;  // arc of the end band / arc of the sherd
   double mean_radius = 0.0;
   bool reaches_axis = false;    // closes towards the axis: a base
-  double facing_away_share = 0.0;  // normals pointing out of this end along the axis
+  bool flat_underside = false;  // a wide face pointing out of this end along the axis
 };
 
 EndShape end_shape(const std::vector<CylPoint>& pts, bool top, double band_mm, double sherd_arc_deg,
@@ -173,15 +171,21 @@ EndShape end_shape(const std::vector<CylPoint>& pts, bool top, double band_mm, d
   const double radius = median_radius(band);
   s.coverage_share = angular_coverage(phis, radius).degrees / std::max(sherd_arc_deg, 1e-9);
   double min_r = std::numeric_limits<double>::infinity(), sum_r = 0.0;
-  int away = 0;
+  double away_min_r = std::numeric_limits<double>::infinity(), away_max_r = 0.0;
+  std::size_t away = 0;
   for (const auto& p : band) {
     min_r = std::min(min_r, p.r);
     sum_r += p.r;
-    if ((top ? p.n_h : -p.n_h) > 0.9) ++away;
+    if ((top ? p.n_h : -p.n_h) > 0.9) {
+      ++away;
+      away_min_r = std::min(away_min_r, p.r);
+      away_max_r = std::max(away_max_r, p.r);
+    }
   }
   s.mean_radius = sum_r / band.size();
   s.reaches_axis = min_r < 0.15 * max_radius;
-  s.facing_away_share = static_cast<double>(away) / band.size();
+  // A fracture or lip face spans only the wall thickness radially; an underside spans the base.
+  s.flat_underside = away > 0.3 * band.size() && away_max_r - away_min_r > 0.25 * max_radius;
   return s;
 }
 
@@ -189,6 +193,7 @@ EndShape end_shape(const std::vector<CylPoint>& pts, bool top, double band_mm, d
 //  1. a base closes towards the axis: the end that reaches the axis is the base;
 //  2. a rim is a lip: the boundary is perpendicular to the axis across the whole preserved arc, so
 //     the end whose extreme band covers (nearly) the sherd's arc is the rim, a break covers little;
+//     when both ends look flat, a clearly better covered end is taken, uncertain;
 //  3. otherwise (a body sherd): the wider end is taken as the rim — most vessels open upwards —
 //     and the orientation is marked uncertain.
 struct Orientation {
@@ -203,7 +208,7 @@ Orientation orient(const std::vector<CylPoint>& pts, double band_mm, double arc_
   for (const auto& p : pts) max_r = std::max(max_r, p.r);
   const EndShape top = end_shape(pts, true, band_mm, arc_deg, max_r);
   const EndShape bottom = end_shape(pts, false, band_mm, arc_deg, max_r);
-  constexpr double kLip = 0.7;
+  constexpr double kLip = 0.7, kClearlyBetter = 0.15;
   auto is_lip = [&](const EndShape& e) { return e.coverage_share >= kLip && !e.reaches_axis; };
   Orientation o;
   if (top.reaches_axis != bottom.reaches_axis) {
@@ -212,14 +217,15 @@ Orientation orient(const std::vector<CylPoint>& pts, double band_mm, double arc_
   } else if (is_lip(top) != is_lip(bottom)) {
     o.flip = is_lip(bottom);
     o.certain = true;
+  } else if (std::abs(top.coverage_share - bottom.coverage_share) > kClearlyBetter) {
+    o.flip = bottom.coverage_share > top.coverage_share;
   } else {
     o.flip = bottom.mean_radius > top.mean_radius;
   }
   const EndShape& rim = o.flip ? bottom : top;
   const EndShape& base = o.flip ? top : bottom;
   o.has_rim = is_lip(rim);
-  // A base closes towards the axis, or ends in a flat underside facing away from the rim.
-  o.has_base = base.reaches_axis || (base.coverage_share >= kLip && base.facing_away_share > 0.3);
+  o.has_base = base.reaches_axis || (base.coverage_share >= kLip && base.flat_underside);
   return o;
 }
 
@@ -494,7 +500,8 @@ Analysis analyse(const Cloud& sherd, const axis::AxisEstimate& axis, const Param
   result.sherd_to_world.linear().col(2) = frame.z;
   result.sherd_to_world.translation() = frame.origin;
 
-  // The section slab, without radial fracture faces (normals along the circumference).
+  // The section slab, without radial fracture faces (normals mostly along the circumference, so
+  // little of them is left in the (r, z) half-plane).
   std::vector<SectionPoint> section;
   for (const auto& p : pts) {
     if (std::abs(wrap_angle(p.phi - azimuth)) > half_width) continue;

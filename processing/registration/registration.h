@@ -26,7 +26,7 @@ struct Params {
   int max_iterations = 40;
   double max_correction_deg = 3.0;  // correction from the prior beyond these is flagged
   double max_correction_mm = 5.0;
-  float mesh_max_edge_mm = 3.0f;    // organised triangulation: longer edges are depth jumps
+  float mesh_max_edge_mm = 3.0f;  // organised triangulation: longer edges are depth jumps
   // A view whose share of points near the placed views (at its prior, within
   // max_correspondence_mm + max_correction_mm) is below this is flagged "no_overlap".
   double min_overlap = 0.1;
@@ -41,15 +41,15 @@ struct ViewResult {
   double rms_mm = 0.0;           // point-to-plane RMS over accepted correspondences
   double overlap = 0.0;          // share of the view's points with a correspondence
   int iterations = 0;
-  double correction_deg = 0.0;   // rotation between prior and final pose
-  double correction_mm = 0.0;    // translation between prior and final pose (world origin)
+  double correction_deg = 0.0;  // rotation between prior and final pose
+  double correction_mm = 0.0;   // translation between prior and final pose (world origin)
   // What ICP proposed, kept even when rejected ("implausible_correction"): total rotation,
   // its part about the world z axis (the turntable axis, where near-symmetric pots let ICP slide),
   // and the displacement of the world origin.
   double proposed_correction_deg = 0.0;
   double proposed_about_z_deg = 0.0;
   double proposed_correction_mm = 0.0;
-  bool refined = false;          // false: the prior was kept
+  bool refined = false;  // false: the prior was kept
   // "reference" (first non-empty view: it anchors the world frame, kept at its prior),
   // "empty" (no valid cell), "no_overlap" (too few correspondences with the placed views),
   // "implausible_correction" (ICP's correction beyond max_correction_deg/mm: prior kept),

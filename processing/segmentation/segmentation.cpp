@@ -20,10 +20,13 @@ namespace sherd::segmentation {
 namespace {
 
 constexpr std::size_t kPlaneSampleSize = 100'000;  // RANSAC sees at most this many points
-// Clustering runs on one representative per voxel of this fraction of the tolerance: a scan
-// holds many points per tolerance radius, and searching all of them made 1M points take tens
-// of seconds. Representatives are voxel centroids, so a point is within √3·leaf of its own.
-constexpr double kVoxelsPerTolerance = 4.0;
+// Clustering runs on one representative (centroid) per voxel of tolerance / this: a scan holds
+// many points per tolerance radius, and searching all of them is what makes 1M points slow.
+// A point lies within √3·leaf of its representative, so two point sets are split for certain
+// when their gap exceeds tolerance + 2√3·leaf (≈ 2.2 × tolerance) and joined for certain when
+// it is below tolerance − 2√3·leaf; in between it depends on where the voxels fall. Measured:
+// 1M points all foreground ≈ 1.0 s, 1M with 80 % background ≈ 0.2 s (2-core machine).
+constexpr double kVoxelsPerTolerance = 3.0;
 
 void check_params(const Params& p) {
   auto bad = [](const std::string& what) {
@@ -92,7 +95,8 @@ bool background_colour(Rgb8 c, const Params& params) {
   const double max = std::max({c.r, c.g, c.b}) / 255.0;
   const double min = std::min({c.r, c.g, c.b}) / 255.0;
   const double saturation = max > 0.0 ? (max - min) / max : 0.0;
-  if (saturation >= params.background_max_saturation) return false;
+  const bool grey = saturation < params.background_max_saturation || max - min < params.background_max_chroma;
+  if (!grey) return false;
   return params.background == BackgroundColour::Black ? max <= params.black_max_value : max >= params.white_min_value;
 }
 

@@ -21,10 +21,13 @@ struct Params {
   double volume_radius_mm = 160.0;  // cylinder about the world z axis; <= 0: no volume cut
   double volume_min_z_mm = 0.5;
   double volume_max_z_mm = 400.0;
-  // Colour background test (HSV): grey means saturation below this; black means grey and value
-  // below black_max_value; white means grey and value above white_min_value. Saturation does not
-  // change with shading, so dark shaded clay stays clay.
+  // Colour background test (HSV, channels in 0–1): grey means saturation below
+  // background_max_saturation or chroma (max − min) below background_max_chroma; black means
+  // grey with value below black_max_value; white, grey with value above white_min_value.
+  // Saturation does not change with shading, so shaded clay stays clay; the chroma bound catches
+  // the near-black cells whose saturation is only 8-bit noise.
   double background_max_saturation = 0.25;
+  double background_max_chroma = 0.06;
   double black_max_value = 0.35;
   double white_min_value = 0.55;
   // Support plane: the dominant RANSAC plane is removed (with the points within

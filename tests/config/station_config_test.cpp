@@ -54,12 +54,12 @@ TEST_F(StationConfigTest, ShippedFileHasTheDocumentedDefaultStation) {
   const StationConfig c = load_station_config(kShipped);
   EXPECT_EQ(c.source, fs::path(SHERD_SOURCE_DIR) / "config" / "station.toml");
   EXPECT_EQ(c.name, "simulated station");
-  EXPECT_EQ(c.paths.data_dir, fs::current_path() / "data");
-  EXPECT_EQ(c.paths.database, fs::current_path() / "data" / "sherdscan.db");
-  EXPECT_EQ(c.paths.raw_dir, fs::current_path() / "data" / "raw");
-  EXPECT_EQ(c.paths.output_dir, fs::current_path() / "data" / "output");
-  EXPECT_EQ(c.paths.socket, fs::current_path() / "data" / "sherdd.sock");
-  EXPECT_EQ(c.paths.log_file, fs::current_path() / "data" / "sherdd.log");
+  EXPECT_EQ(c.paths.data_dir, fs::current_path() / "var");
+  EXPECT_EQ(c.paths.database, fs::current_path() / "var" / "sherdscan.db");
+  EXPECT_EQ(c.paths.raw_dir, fs::current_path() / "var" / "raw");
+  EXPECT_EQ(c.paths.output_dir, fs::current_path() / "var" / "output");
+  EXPECT_EQ(c.paths.socket, fs::current_path() / "var" / "sherdd.sock");
+  EXPECT_EQ(c.paths.log_file, fs::current_path() / "var" / "sherdd.log");
   EXPECT_EQ(c.scan.views, 8);
   EXPECT_EQ(c.scan.start_angle_deg, 0.0);
   EXPECT_EQ(c.scanner.driver, "simulated");

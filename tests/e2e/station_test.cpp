@@ -48,20 +48,14 @@ unsigned png_pixels_per_metre(const std::filesystem::path& file) {
   return v;
 }
 
-Vec3d centroid(const Mesh& mesh) {
-  Vec3d sum = Vec3d::Zero();
-  for (const auto& p : mesh.vertices.points) sum += p.cast<double>();
-  return sum / static_cast<double>(mesh.vertices.size());
-}
-
 Vec3d vec(const nlohmann::json& a) { return {a[0].get<double>(), a[1].get<double>(), a[2].get<double>()}; }
 
-struct Station {
+struct TestStation {
   TempDir dir;
   std::filesystem::path config_file, data;
   config::StationConfig config;
 
-  explicit Station(const std::map<std::string, std::string>& overrides) {
+  explicit TestStation(const std::map<std::string, std::string>& overrides) {
     config_file = dir.path() / "station.toml";
     data = dir.path() / "data";
     std::ofstream(config_file) << station_config_with(overrides);
@@ -74,7 +68,7 @@ struct Station {
 };
 
 TEST(Station, ScanGivesEveryTruthSherdAPlateAndMeasurementsNearTruth) {
-  Station station({{"turntable.time_scale", "0.05"}});
+  TestStation station(std::map<std::string, std::string>{{"turntable.time_scale", "0.05"}});
   Daemon daemon(station.config_file, station.data);
   daemon.start();
 
@@ -82,7 +76,7 @@ TEST(Station, ScanGivesEveryTruthSherdAPlateAndMeasurementsNearTruth) {
   ASSERT_EQ(scan.exit_code, 0) << scan.err << daemon.log();
   const auto plates = lines(scan.out);
 
-  const auto scene = sim::make_scene(station::scene_spec(station.config.simulation));
+  const auto scene = sim::make_scene(sherd::station::scene_spec(station.config.simulation));
   ASSERT_FALSE(scene.truth.empty());
   ASSERT_EQ(plates.size(), scene.truth.size()) << scan.out << scan.err;
 
@@ -109,12 +103,7 @@ TEST(Station, ScanGivesEveryTruthSherdAPlateAndMeasurementsNearTruth) {
   std::cout << "sherd  truth  found  axis_err_deg  rim_truth_mm  rim_mm  rim_err_%  rim%_truth  rim%\n";
   for (std::size_t k = 0; k < scene.truth.size(); ++k) {
     const auto& truth = scene.truth[k];
-    const SceneObject* object = nullptr;
-    for (const auto& o : scene.objects) {
-      if (o.label == static_cast<int>(k) + 1) object = &o;
-    }
-    ASSERT_NE(object, nullptr);
-    const Vec3d truth_centre = centroid(object->mesh);
+    const Vec3d truth_centre = truth.centroid;
     std::size_t best = detected.size();
     double best_distance = 1e9;
     for (std::size_t i = 0; i < detected.size(); ++i) {
@@ -158,11 +147,11 @@ TEST(Station, ScanGivesEveryTruthSherdAPlateAndMeasurementsNearTruth) {
 }
 
 TEST(Station, KillDuringAcquisitionLosesNoViewAndTheScanFinishesAfterRestart) {
-  Station station({{"turntable.time_scale", "1.0"}});
+  TestStation station(std::map<std::string, std::string>{{"turntable.time_scale", "1.0"}});
   auto daemon = std::make_unique<Daemon>(station.config_file, station.data);
   daemon->start();
 
-  auto socket = station::connect_unix(daemon->socket());
+  auto socket = sherd::station::connect_unix(daemon->socket());
   socket.send({{"cmd", "scan"}});
   const auto reply = socket.receive();
   ASSERT_TRUE(reply && (*reply)["ok"].get<bool>());

@@ -25,7 +25,7 @@ struct WallOfRevolution {
   double thickness_mm = 6.0;
   double phi_begin_rad = 0.0, phi_end_rad = M_PI / 3;
   bool flat_lip = true;               // rim end: flat lip face; otherwise an irregular break
-  double break_amplitude_mm = 4.0;    // irregularity of the broken ends, in arc length
+  double break_amplitude_mm = 10.0;   // irregularity of the broken ends, in arc length
   bool side_faces = true;             // fracture faces at phi_begin / phi_end
   bool closed_base = false;           // base end closed at the axis (r(0) = 0): no break there
   double spacing_mm = 0.5;

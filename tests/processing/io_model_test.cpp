@@ -276,6 +276,20 @@ TEST(IoRead, BadInputThrowsInputErrorNamingTheFile) {
   }
 }
 
+TEST(IoRead, BinaryPlyCutInsideTheVertexDataIsRefused) {
+  // A real mesh written as binary PLY, then cut in the middle of its vertex block and of its
+  // face block: both must be refused with InputError, not crash or come back short.
+  TempDir dir;
+  const Mesh bunny = read_model(kData / "stanford-bunny" / "reconstruction" / "bun_zipper_res4.ply");
+  sherd::io::write_ply(dir / "whole.ply", bunny);
+  const auto size = fs::file_size(dir / "whole.ply");
+  for (const double fraction : {0.3, 0.9}) {
+    fs::copy_file(dir / "whole.ply", dir / "cut.ply", fs::copy_options::overwrite_existing);
+    fs::resize_file(dir / "cut.ply", static_cast<std::uintmax_t>(size * fraction));
+    EXPECT_THROW(read_model(dir / "cut.ply"), sherd::InputError) << "cut at " << fraction;
+  }
+}
+
 TEST(IoWrite, PlyRoundTripKeepsEverything) {
   TempDir dir;
   Mesh mesh;

@@ -149,7 +149,7 @@ TEST(ProfileAnalyse, CompleteCupCapacity) {
   EXPECT_NEAR(*m.rim_diameter_mm, 80.0, 0.3);
   ASSERT_TRUE(m.rim_percent.has_value());
   EXPECT_NEAR(*m.rim_percent, 100.0, 0.5);
-  EXPECT_NEAR(m.height_mm, 70.0, 0.3);
+  EXPECT_NEAR(m.height_mm, 70.0, 0.5);  // extremes of 0.05 mm noise: up to ~4 sd at each end
   ASSERT_TRUE(m.base_diameter_mm.has_value());
   EXPECT_GT(*m.base_diameter_mm, 2.0 * kFlat - 1.0);  // at least the flat resting disc
   EXPECT_LT(*m.base_diameter_mm, 80.0);

@@ -76,7 +76,8 @@ Pose conf_pose(const std::string& mesh) {
     if (words >> kind >> name >> tx >> ty >> tz >> qx >> qy >> qz >> qw && kind == "bmesh" &&
         name == mesh) {
       Pose pose = Pose::Identity();
-      pose.linear() = Eigen::Quaterniond(qw, qx, qy, qz).normalized().toRotationMatrix().transpose();
+      pose.linear() =
+          Eigen::Quaterniond(qw, qx, qy, qz).normalized().toRotationMatrix().transpose();
       pose.translation() = Vec3d(tx, ty, tz) * 1000.0;
       return pose;
     }

@@ -13,7 +13,8 @@
 namespace sherd::render {
 namespace {
 
-const std::filesystem::path kMaterials = std::filesystem::path(SHERD_SOURCE_DIR) / "config/materials.xml";
+const std::filesystem::path kMaterials =
+    std::filesystem::path(SHERD_SOURCE_DIR) / "config/materials.xml";
 
 std::filesystem::path write_temp(const std::string& name, const std::string& text) {
   const auto path = std::filesystem::temp_directory_path() / name;
@@ -96,8 +97,7 @@ TEST(Materials, NonNumericCoefficientNamesLineAndValue) {
 
 TEST(Materials, MissingFileSaysSo) {
   const std::string message = input_error_of([] { load_materials("/nonexistent/materials.xml"); });
-  EXPECT_NE(message.find("/nonexistent/materials.xml: materials file not found"),
-            std::string::npos)
+  EXPECT_NE(message.find("/nonexistent/materials.xml: materials file not found"), std::string::npos)
       << message;
 }
 

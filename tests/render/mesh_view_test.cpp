@@ -16,7 +16,8 @@
 namespace sherd::render {
 namespace {
 
-const std::filesystem::path kMaterials = std::filesystem::path(SHERD_SOURCE_DIR) / "config/materials.xml";
+const std::filesystem::path kMaterials =
+    std::filesystem::path(SHERD_SOURCE_DIR) / "config/materials.xml";
 
 struct Coverage {
   int count = 0, first = -1, last = -1;
@@ -44,32 +45,35 @@ Coverage column_coverage(const RgbaImage& image, int column) {
   return c;
 }
 
-// A 100.000 × 60.000 mm face seen square-on: 100 mm / (25.4 mm / dpi) pixels wide.
-void expect_exact_scale(int dpi, int expected_width_px, int expected_height_px) {
-  const Mesh slab = test::box(100.0, 60.0, 5.0);
-  OrthoCamera camera;
-  camera.pixel_mm = 25.4 / dpi;
-  camera.left_mm = -60.0;
-  camera.bottom_mm = -35.0;
-  camera.width_px = static_cast<int>(std::ceil(120.0 / camera.pixel_mm));
-  camera.height_px = static_cast<int>(std::ceil(70.0 / camera.pixel_mm));
-  const RgbaImage image =
-      render_mesh(slab, find_material(kMaterials, "clay"), camera, drawing_lighting());
-  ASSERT_EQ(image.width, camera.width_px);
-  const Coverage across = row_coverage(image, image.height / 2);
-  EXPECT_NEAR(across.count, expected_width_px, 1) << dpi << " dpi";
-  EXPECT_EQ(across.last - across.first + 1, across.count) << "holes in the face";
-  // The face's left edge is 10 mm from the image's left edge.
-  EXPECT_NEAR(across.first, 10.0 / camera.pixel_mm, 1.0);
-  const Coverage down = column_coverage(image, image.width / 2);
-  EXPECT_NEAR(down.count, expected_height_px, 1) << dpi << " dpi";
-  // 5 mm from the top of the image (which reaches 35 mm above the centre).
-  EXPECT_NEAR(down.first, 5.0 / camera.pixel_mm, 1.0);
+// A 100.000 mm long, 8 mm wide face seen square-on, lying along x and then along y: 100 mm /
+// (25.4 mm / dpi) pixels long both ways (square pixels), placed where the camera says.
+void expect_exact_scale(int dpi, int expected_px) {
+  const LafortuneMaterial clay = find_material(kMaterials, "clay");
+  Lighting lighting = drawing_lighting();
+  for (DirectionalLight& light : lighting.lights) light.casts_shadow = false;  // not needed here
+  for (const bool along_x : {true, false}) {
+    const Mesh slab = along_x ? test::box(100.0, 8.0, 5.0) : test::box(8.0, 100.0, 5.0);
+    OrthoCamera camera;
+    camera.pixel_mm = 25.4 / dpi;
+    camera.left_mm = along_x ? -53.0 : -6.0;  // 3 mm left of the face along x, else 2 mm
+    camera.bottom_mm = along_x ? -6.0 : -53.0;
+    camera.width_px = static_cast<int>(std::ceil((along_x ? 106.0 : 12.0) / camera.pixel_mm));
+    camera.height_px = static_cast<int>(std::ceil((along_x ? 12.0 : 106.0) / camera.pixel_mm));
+    const RgbaImage image = render_mesh(slab, clay, camera, lighting);
+    ASSERT_EQ(image.width, camera.width_px);
+    ASSERT_EQ(image.height, camera.height_px);
+    const Coverage c =
+        along_x ? row_coverage(image, image.height / 2) : column_coverage(image, image.width / 2);
+    EXPECT_NEAR(c.count, expected_px, 1) << dpi << " dpi, along " << (along_x ? "x" : "y");
+    EXPECT_EQ(c.last - c.first + 1, c.count) << "holes in the face";
+    // The face starts 3 mm from the image's left edge, and 3 mm below its top edge.
+    EXPECT_NEAR(c.first, 3.0 / camera.pixel_mm, 1.0);
+  }
 }
 
-TEST(MeshView, HundredMillimetresAt600DpiAre2362Pixels) { expect_exact_scale(600, 2362, 1417); }
+TEST(MeshView, HundredMillimetresAt600DpiAre2362Pixels) { expect_exact_scale(600, 2362); }
 
-TEST(MeshView, HundredMillimetresAt1200DpiAre4724Pixels) { expect_exact_scale(1200, 4724, 2835); }
+TEST(MeshView, HundredMillimetresAt1200DpiAre4724Pixels) { expect_exact_scale(1200, 4724); }
 
 // pbrt's Lafortune BRDF, one channel, wo/wi given in the local shading frame (z = normal).
 double pbrt_lafortune(const LafortuneMaterial& m, int channel, const Vec3d& wo, const Vec3d& wi) {
@@ -87,8 +91,8 @@ double pbrt_lafortune(const LafortuneMaterial& m, int channel, const Vec3d& wo, 
 void expect_shader_matches_pbrt(const std::string& material_name, double tilt_deg,
                                 const Vec3d& towards_light) {
   const LafortuneMaterial material = find_material(kMaterials, material_name);
-  const Eigen::Matrix3d tilt = Eigen::AngleAxisd(tilt_deg * std::numbers::pi / 180.0,
-                                                 Vec3d::UnitY()).toRotationMatrix();
+  const Eigen::Matrix3d tilt =
+      Eigen::AngleAxisd(tilt_deg * std::numbers::pi / 180.0, Vec3d::UnitY()).toRotationMatrix();
   Mesh quad = test::box(20.0, 20.0, 0.0);  // the z = 0 faces of a flat box: two squares
   quad.vertices.transform(Pose(tilt));
   // Local frame as pbrt builds it: x = dp/du (the square's first edge), y = n × x, z = n.
@@ -140,8 +144,8 @@ TEST(MeshView, HeadOnDiffuseIsAlbedoOverPiTimesCosine) {
   // Hand value: a Lambertian (no lobes) 0.6 albedo lit at 60° by E = 2: 0.6/π · cos 60° · 2.
   LafortuneMaterial lambert{"lambert", {0.6, 0.6, 0.6}, {}};
   Lighting lighting;
-  lighting.lights = {{Vec3d(std::sin(std::numbers::pi / 3), 0, std::cos(std::numbers::pi / 3)),
-                      2.0, false}};
+  lighting.lights = {
+      {Vec3d(std::sin(std::numbers::pi / 3), 0, std::cos(std::numbers::pi / 3)), 2.0, false}};
   lighting.srgb_encode = false;
   OrthoCamera camera;
   camera.pixel_mm = 0.5;
@@ -161,7 +165,8 @@ TEST(MeshView, KeyLightShadowFallsWhereGeometryPutsIt) {
   cube.vertices.transform(Pose(Eigen::Translation3d(0, 0, 5.0)));
   const auto offset = static_cast<std::uint32_t>(scene.vertices.size());
   scene.vertices.append(cube.vertices);
-  for (Triangle t : cube.triangles) scene.triangles.push_back({t[0] + offset, t[1] + offset, t[2] + offset});
+  for (Triangle t : cube.triangles)
+    scene.triangles.push_back({t[0] + offset, t[1] + offset, t[2] + offset});
 
   const LafortuneMaterial grey{"grey", {0.5, 0.5, 0.5}, {}};
   const Vec3d key(-1.0, 1.0, 1.2), fill(1.0, 0.0, 1.0);
@@ -175,7 +180,8 @@ TEST(MeshView, KeyLightShadowFallsWhereGeometryPutsIt) {
   camera.width_px = camera.height_px = 256;
   const RgbaImage image = render_mesh(scene, grey, camera, lighting);
   const auto value_at = [&](double x, double y) {
-    return image.pixel(static_cast<int>((x + 32.0) / 0.25), static_cast<int>((32.0 - y) / 0.25))[0] /
+    return image.pixel(static_cast<int>((x + 32.0) / 0.25),
+                       static_cast<int>((32.0 - y) / 0.25))[0] /
            255.0;
   };
   const double key_term = 0.5 / std::numbers::pi * 1.5 * key.normalized().z();
@@ -185,6 +191,28 @@ TEST(MeshView, KeyLightShadowFallsWhereGeometryPutsIt) {
   EXPECT_NEAR(value_at(8.0, -8.0), fill_term + ambient_term, 1.5 / 255.0);
   // The cube's own top, nearest the light, is lit.
   EXPECT_NEAR(value_at(0.0, 0.0), key_term + fill_term + ambient_term, 1.5 / 255.0);
+}
+
+TEST(MeshView, PointCloudIsDrawnWithoutHoles) {
+  // A 100 × 8 mm grid of points 0.5 mm apart, no triangles: the points must close the gaps
+  // (pixels are 0.1 mm) and the extent stay 100 mm plus about one point radius each side.
+  Mesh cloud;
+  for (int i = 0; i <= 200; ++i)
+    for (int j = 0; j <= 16; ++j) {
+      cloud.vertices.points.emplace_back(-50.0f + 0.5f * i, -4.0f + 0.5f * j, 0.0f);
+      cloud.vertices.normals.emplace_back(0.0f, 0.0f, 1.0f);
+    }
+  OrthoCamera camera;
+  camera.pixel_mm = 0.1;
+  camera.left_mm = -53.0;
+  camera.bottom_mm = -6.0;
+  camera.width_px = 1060;
+  camera.height_px = 120;
+  const RgbaImage image =
+      render_mesh(cloud, {"grey", {0.5, 0.5, 0.5}, {}}, camera, drawing_lighting());
+  const Coverage c = row_coverage(image, 60);
+  EXPECT_EQ(c.last - c.first + 1, c.count) << "holes between the points";
+  EXPECT_NEAR(c.count * camera.pixel_mm, 100.0, 1.0);
 }
 
 TEST(MeshView, RejectsNonFiniteVertices) {

@@ -84,10 +84,11 @@ int longest_ink_run(const Png& png, int row) {
 }
 
 TEST(Plate, BodySherdIsAtExactScaleWithPhys) {
-  // No axis: front and back of a 100 × 60 × 5 mm slab side by side at 600 dpi.
-  const Mesh slab = test::box(100.0, 60.0, 5.0);
+  // No axis: front and back of a 100 × 30 × 5 mm slab side by side at 600 dpi.
+  const Mesh slab = test::box(100.0, 30.0, 5.0);
   const auto dir = fresh_dir("body");
-  const PlateFiles files = render_plate({"scan-1", "sherd-1", &slab, nullptr}, settings_at(600), dir);
+  const PlateFiles files =
+      render_plate({"scan-1", "sherd-1", &slab, nullptr}, settings_at(600), dir);
   const Png png = read_png(files.png);
   EXPECT_EQ(png.width, files.width_px);
   EXPECT_EQ(png.height, files.height_px);
@@ -205,8 +206,8 @@ TEST(Plate, BritishConventionMirrorsTheSection) {
   const WallSherd sherd = wall_sherd(120.0);
   PlateSettings settings = settings_at(150);
   settings.section_on_right = false;
-  const PlateFiles files =
-      render_plate({"scan-1", "sherd-3", &sherd.mesh, &sherd.analysis}, settings, fresh_dir("left"));
+  const PlateFiles files = render_plate({"scan-1", "sherd-3", &sherd.mesh, &sherd.analysis},
+                                        settings, fresh_dir("left"));
   expect_section_extent(read_svg(files.svg), -50.0, -45.0);
 }
 
@@ -216,31 +217,27 @@ TEST(Plate, ExteriorViewStartsAtTheFacingMeridian) {
   const WallSherd sherd = wall_sherd(60.0);
   const int dpi = 300;
   const double pixel = 25.4 / dpi;
-  const PlateFiles files =
-      render_plate({"scan-1", "sherd-4", &sherd.mesh, &sherd.analysis}, settings_at(dpi),
-                   fresh_dir("arc"));
+  const PlateFiles files = render_plate({"scan-1", "sherd-4", &sherd.mesh, &sherd.analysis},
+                                        settings_at(dpi), fresh_dir("arc"));
   const Png png = read_png(files.png);
-  // Find the section in the rows: the row with the longest black run is inside it.
-  int row = -1, section_first = -1, section_last = -1;
-  for (int j = 0; j < png.height && row < 0; ++j) {
-    int first = -1, last = -1;
-    for (int i = 0; i < png.width; ++i)
-      if (png.black(i, j)) {
-        if (first < 0) first = i;
-        last = i;
-      }
-    // 5 mm of black plus the pen, and nothing else black in the row (text rows are excluded).
-    if (first >= 0 && (last - first + 1) * pixel > 5.0 && (last - first + 1) * pixel < 6.0) {
-      bool solid = true;
-      for (int i = first; i <= last; ++i) solid = solid && png.black(i, j);
-      if (solid && j > png.height / 4) {
-        row = j + static_cast<int>(10.0 / pixel);  // well inside the 40 mm tall section
-        section_first = first;
-        section_last = last;
-      }
+  // The section is the rightmost black in the rows it spans: a run 5 mm plus the pen wide. Its
+  // centre (u = 47.5 mm) locates the axis.
+  int rows_found = 0, row_sum = 0, section_first = -1, section_last = -1;
+  for (int j = 0; j < png.height; ++j) {
+    int last = png.width - 1;
+    while (last >= 0 && !png.black(last, j)) --last;
+    int first = last;
+    while (first > 0 && png.black(first - 1, j)) --first;
+    const double run_mm = (last - first + 1) * pixel;
+    if (last >= 0 && run_mm > 5.0 && run_mm < 5.8) {
+      ++rows_found;
+      row_sum += j;
+      section_first = first;
+      section_last = last;
     }
   }
-  ASSERT_GE(row, 0) << "no section found";
+  ASSERT_NEAR(rows_found * pixel, 40.0, 1.0) << "the section is 40 mm tall";
+  const int row = row_sum / rows_found;
   const double axis_column = (section_first + section_last + 1) / 2.0 - 47.5 / pixel;
   const auto column = [&](double u) { return static_cast<int>(axis_column + u / pixel); };
   EXPECT_FALSE(png.white(column(-40.0), row)) << "inside the rendered arc";
@@ -265,9 +262,9 @@ TEST(Plate, UnknownMaterialIsAnInputErrorBeforeRendering) {
 }
 
 TEST(Plate, MissingMeshIsAnInputError) {
-  EXPECT_THROW(render_plate({"scan-1", "sherd-6", nullptr, nullptr}, settings_at(150),
-                            fresh_dir("none")),
-               InputError);
+  EXPECT_THROW(
+      render_plate({"scan-1", "sherd-6", nullptr, nullptr}, settings_at(150), fresh_dir("none")),
+      InputError);
 }
 
 }  // namespace

@@ -14,11 +14,14 @@ void add_grid(Mesh& mesh, int rows, int cols,
   const auto base = static_cast<std::uint32_t>(mesh.vertices.size());
   for (int i = 0; i <= rows; ++i)
     for (int j = 0; j <= cols; ++j) {
-      const auto [p, n] = point_normal(static_cast<double>(j) / cols, static_cast<double>(i) / rows);
+      const auto [p, n] =
+          point_normal(static_cast<double>(j) / cols, static_cast<double>(i) / rows);
       mesh.vertices.points.push_back(p);
       mesh.vertices.normals.push_back(n);
     }
-  const auto at = [&](int i, int j) { return base + static_cast<std::uint32_t>(i * (cols + 1) + j); };
+  const auto at = [&](int i, int j) {
+    return base + static_cast<std::uint32_t>(i * (cols + 1) + j);
+  };
   for (int i = 0; i < rows; ++i)
     for (int j = 0; j < cols; ++j) {
       mesh.triangles.push_back({at(i, j), at(i, j + 1), at(i + 1, j + 1)});
@@ -57,7 +60,8 @@ Mesh cylinder_wall(double outer_r, double inner_r, double height, double from_ra
   for (const auto& [r, outward] : {std::pair{outer_r, 1.0}, std::pair{inner_r, -1.0}})
     add_grid(mesh, rows, segments, [&](double s, double t) {
       const Vec3d d = radial(s);
-      return PointNormal{(r * d + Vec3d(0, 0, t * height)).cast<float>(), (outward * d).cast<float>()};
+      return PointNormal{(r * d + Vec3d(0, 0, t * height)).cast<float>(),
+                         (outward * d).cast<float>()};
     });
   for (const auto& [z, up] : {std::pair{height, 1.0}, std::pair{0.0, -1.0}})
     add_grid(mesh, 1, segments, [&](double s, double t) {
