@@ -145,6 +145,42 @@ void add_sherd(Scene& scene, int index, const VesselProfile& profile, const Sher
   scene.objects.push_back(make_object(truth.id, index + 1, std::move(placed)));
 }
 
+// The kinds of sherd on a tray of `count`, in placement order: rim sherds in about half the
+// places (at least one; two from three sherds on) because they are what gets measured most
+// (diameter, EVE), a base from three sherds on (one in four beyond), body sherds in the rest —
+// in an order shuffled by the seed.
+std::vector<SherdKind> tray_kinds(int count, Rng& rng) {
+  const int rims = (count + 1) / 2;
+  const int bases = count >= 3 ? std::max(1, count / 4) : 0;
+  std::vector<SherdKind> kinds(static_cast<std::size_t>(count), SherdKind::Body);
+  std::fill_n(kinds.begin(), rims, SherdKind::Rim);
+  std::fill_n(kinds.begin() + rims, bases, SherdKind::Base);
+  // Fisher–Yates by hand: std::shuffle's output differs between standard libraries.
+  for (int i = count - 1; i > 0; --i) std::swap(kinds[i], kinds[rng.integer(0, i)]);
+  return kinds;
+}
+
+struct BrokenVessel {
+  VesselProfile profile;
+  SherdPiece piece;
+};
+
+// A sherd of `kind` within max_extent_mm from a random vessel: families are drawn until one has
+// room for that kind (a flat plate has no 25 mm of rim height, a short wall no body sherd).
+BrokenVessel break_random_vessel(SherdKind kind, double max_extent_mm, Rng& rng) {
+  const VesselLimits limits{.max_diameter_mm = max_vessel_diameter(kind, max_extent_mm)};
+  for (int attempt = 0; attempt < 100; ++attempt) {
+    VesselProfile profile = make_vessel_profile(random_family(rng), rng, limits);
+    if (!can_break(profile, kind, max_extent_mm)) continue;
+    const ClayColours clay = random_clay(rng);
+    SherdPiece piece = break_sherd(profile, clay, rng, max_extent_mm, kind);
+    return {std::move(profile), std::move(piece)};
+  }
+  throw InputError(fmt::format(
+      "sherd simulator: no vessel gives a {} sherd within {:.0f} mm: use fewer sherds per scene",
+      to_string(kind), max_extent_mm));
+}
+
 // Where the frame's sherds stand: evenly around a ring, or at the centre for a single one.
 double frame_ring_radius(int sherds) { return sherds <= 1 ? 0.0 : kFrameRingRadiusMm; }
 
@@ -160,14 +196,12 @@ void place_frame(Scene& scene, Rng& master, const Rgb8& bg) {
   const int k = scene.spec.sherds;
   const double ring = frame_ring_radius(k);
   const double max_extent = frame_max_extent(k);
+  Rng order = master.fork();
+  const std::vector<SherdKind> kinds = tray_kinds(k, order);
   Mesh frame;
   for (int i = 0; i < k; ++i) {
     Rng rng = master.fork();
-    // Small vessels where the room is small: even a 5 % sherd of a big plate is long.
-    const VesselProfile profile = make_vessel_profile(
-        random_family(rng), rng, {.max_diameter_mm = 4.5 * (max_extent - 8.0)});
-    const ClayColours clay = random_clay(rng);
-    SherdPiece piece = break_sherd(profile, clay, rng, max_extent);
+    const auto [profile, piece] = break_random_vessel(kinds[i], max_extent, rng);
 
     const double psi = 2 * kPi * i / std::max(k, 1) + rng.uniform(-0.1, 0.1);
     const double facing = rng.chance(0.5) ? 1.0 : -1.0;
@@ -234,16 +268,15 @@ void place_on_plate(Scene& scene, Rng& master) {
   const double plate_area = kPi * (kPlateRadiusMm - 5.0) * (kPlateRadiusMm - 5.0);
   const double first_extent =
       std::clamp(std::sqrt(0.25 * plate_area / std::max(k, 1)), 40.0, 100.0);
+  Rng order = master.fork();
+  const std::vector<SherdKind> kinds = tray_kinds(k, order);
   std::vector<std::pair<Vec3d, double>> taken;  // footprint circles: centre, radius
   for (int i = 0; i < k; ++i) {
     Rng rng = master.fork();
     // Break a piece and look for a free spot (rejection sampling); where none is left, break a
     // smaller piece: the seed still fixes everything.
     for (double max_extent = first_extent;; max_extent = std::max(38.0, 0.8 * max_extent)) {
-      const VesselProfile profile = make_vessel_profile(
-          random_family(rng), rng, {.max_diameter_mm = 4.5 * (max_extent - 8.0)});
-      const ClayColours clay = random_clay(rng);
-      const SherdPiece piece = break_sherd(profile, clay, rng, max_extent);
+      const auto [profile, piece] = break_random_vessel(kinds[i], max_extent, rng);
       // Lying with the outer face up or down, turned at random about the vertical.
       const double facing = rng.chance(0.5) ? 1.0 : -1.0;
       const double beta = rng.uniform(0.0, 2 * kPi);

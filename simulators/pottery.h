@@ -10,6 +10,8 @@
 //   Vessel — one complete vessel (bowl, plate, beaker or jar, ≤ 185 mm tall to stay in the
 //            default scanner's view) standing near the plate centre;
 //   Empty  — the plate and (when sherds > 0) the empty frame.
+// A frame or plate tray of k sherds holds ⌈k/2⌉ rim sherds, max(1, k/4) base sherds from k = 3 on
+// and body sherds in the rest, in an order shuffled by the seed (sizes: see break_sherd).
 //
 // truth.json (schema "sherdscan.truth/1"), the contract read by end-to-end tests and benchmarks:
 //   schema, seed, scene ("frame"|"plate"|"vessel"|"empty"), background ("black"|"white"),

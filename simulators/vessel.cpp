@@ -8,6 +8,8 @@
 #include <array>
 #include <cmath>
 #include <numbers>
+#include <optional>
+#include <utility>
 
 namespace sherd::sim {
 namespace {
@@ -219,6 +221,65 @@ class Wobble {
   std::array<std::array<double, 3>, 4> waves_{};  // amplitude, angular frequency, phase
 };
 
+// Sherd breaking. Fracture edges wander by at most kMaxCutWobbleMm across the profile and by
+// kSideWander of the nominal arc on each side.
+constexpr double kMinSherdMm = 30.0;        // smallest extent along the profile and around
+constexpr double kMaxCutWobbleMm = 5.0;
+constexpr double kCutClearanceMm = kMaxCutWobbleMm + 1.0;  // a wandering cut still misses it
+constexpr double kSideWander = 0.12;
+constexpr double kExtentMarginMm = 6.0;     // along-profile extent below max_extent (wander)
+constexpr double kArcMarginMm = 8.0;        // arc length below max_extent (wander, thickness)
+constexpr double kBaseCutFraction = 0.35;   // base cuts stay this far out from the axis (× s_wall)
+
+// The smallest nominal arc fraction that keeps the kind's minimum after the side edges wander in.
+double min_nominal_fraction(SherdKind kind) {
+  double fraction = 0.05;
+  if (kind == SherdKind::Rim) fraction = kMinRimPercent / 100.0;
+  if (kind == SherdKind::Body) fraction = std::max(fraction, kMinBodyArcDeg / 360.0);
+  return fraction / (1.0 - 2 * kSideWander);
+}
+
+// The range [min, max] of the sherd's length along the profile (mm) for which a sherd of `kind`
+// fits this profile within max_extent_mm; nullopt where none does.
+std::optional<std::pair<double, double>> along_profile_extent(const VesselProfile& profile,
+                                                              SherdKind kind,
+                                                              double max_extent_mm) {
+  const double S = profile.total_arc();
+  const double s_wall = profile.arc[profile.wall_start];
+  // Never below kMinSherdMm, even where the slot is smaller (as documented for break_sherd).
+  double lo = kMinSherdMm, hi = std::max(kMinSherdMm, max_extent_mm - kExtentMarginMm);
+  switch (kind) {
+    case SherdKind::Rim: {
+      // The bottom cut must lie, wander included, where the outer wall is at least the target
+      // height below the rim: below the first point where the wall rises above that level.
+      // In a slot too small for that height, as tall as the slot allows.
+      const double height = std::min(kMinRimHeightMm, hi - kMaxCutWobbleMm - 0.5);
+      const double z_low_enough = profile.outer.back().y() - height;
+      const auto& outer = profile.outer;
+      std::size_t last = 0;
+      while (last + 1 < outer.size() && outer[last + 1].y() <= z_low_enough) ++last;
+      double s_rise = profile.arc[last];
+      if (last + 1 < outer.size()) {  // where the wall crosses the level, between two samples
+        s_rise += (z_low_enough - outer[last].y()) / (outer[last + 1].y() - outer[last].y()) *
+                  (profile.arc[last + 1] - profile.arc[last]);
+      }
+      const double sa_max = s_rise - kMaxCutWobbleMm;
+      if (sa_max < kBaseCutFraction * s_wall) return std::nullopt;  // too low a vessel
+      lo = std::max(lo, S - sa_max);
+      break;
+    }
+    case SherdKind::Base:
+      // Up past the base angle, short of the rim.
+      if (S - s_wall < 15.0 + kCutClearanceMm) return std::nullopt;
+      break;
+    case SherdKind::Body:
+      hi = std::min(hi, S - s_wall - 2 * kCutClearanceMm);
+      break;
+  }
+  if (lo > hi) return std::nullopt;
+  return std::pair{lo, hi};
+}
+
 }  // namespace
 
 const char* to_string(Family family) {
@@ -360,55 +421,83 @@ Mesh revolve_vessel(const VesselProfile& profile, const ClayColours& colours, Rn
   return revolve_section(poly, ring_colours, rng);
 }
 
+const char* to_string(SherdKind kind) {
+  switch (kind) {
+    case SherdKind::Rim: return "rim";
+    case SherdKind::Base: return "base";
+    case SherdKind::Body: return "body";
+  }
+  return "unknown";
+}
+
+double max_vessel_diameter(SherdKind kind, double max_extent_mm) {
+  // break_sherd's upper arc bound (max_extent − kArcMarginMm) / (2π r) stays above the kind's
+  // lower one for every radius r of a vessel this narrow.
+  return (max_extent_mm - kArcMarginMm) / (kPi * min_nominal_fraction(kind));
+}
+
+bool can_break(const VesselProfile& profile, SherdKind kind, double max_extent_mm) {
+  return max_extent_mm >= kMinSherdMm && along_profile_extent(profile, kind, max_extent_mm);
+}
+
 SherdPiece break_sherd(const VesselProfile& profile, const ClayColours& colours, Rng& rng,
-                       double max_extent_mm) {
-  if (!(max_extent_mm >= 30.0)) {
+                       double max_extent_mm, SherdKind kind) {
+  if (!(max_extent_mm >= kMinSherdMm)) {
     throw InputError(fmt::format(
-        "sherd simulator: no room for a sherd ({:.0f} mm < 30 mm): use fewer sherds per scene",
-        max_extent_mm));
+        "sherd simulator: no room for a sherd ({:.0f} mm < {:.0f} mm): use fewer sherds per scene",
+        max_extent_mm, kMinSherdMm));
+  }
+  const auto extent_range = along_profile_extent(profile, kind, max_extent_mm);
+  if (!extent_range) {
+    throw ProcessingError(fmt::format(
+        "sherd simulator: a {} cannot give a {} sherd within {:.0f} mm: check can_break first",
+        to_string(profile.family), to_string(kind), max_extent_mm));
   }
   const double S = profile.total_arc();
   const double s_wall = profile.arc[profile.wall_start];
-  const double s_min = 0.35 * s_wall;  // base cuts stay away from the axis
-  const double extent = rng.uniform(30.0, std::max(30.0, max_extent_mm - 6.0));  // along profile
+  const double s_min = kBaseCutFraction * s_wall;
+  const double extent = rng.uniform(extent_range->first, extent_range->second);
 
-  // Where along the profile the piece lies: rim (45 %), base (25 %) or body sherd (30 %; a rim
-  // sherd where the wall is too short for a body sherd).
+  // Where along the profile the piece lies (along_profile_extent made room for each case).
   double sa = 0.0, sb = 0.0;
-  const double which = rng.uniform();
-  if (which < 0.45 || S - s_wall < extent + 10.0) {
-    sb = S;
-    sa = std::max(s_min, S - extent);
-  } else if (which < 0.7) {
-    // A base sherd keeps the base angle (the join of base and wall), as a real one must to be
-    // recognised as such; a fragment of flat floor alone tells nothing about the vessel.
-    sa = s_wall * rng.uniform(0.35, 0.7);
-    sb = std::min(S, std::max(sa + extent, s_wall + 15.0));
-    sa = std::max(sa, sb - extent);
-  } else {
-    sa = rng.uniform(s_wall + 3.0, S - extent - 3.0);
-    sb = sa + extent;
+  switch (kind) {
+    case SherdKind::Rim:
+      sb = S;
+      sa = std::max(s_min, S - extent);
+      break;
+    case SherdKind::Base:
+      // A base sherd keeps the base angle (the join of base and wall), as a real one must to be
+      // recognised as such; a fragment of flat floor alone tells nothing about the vessel.
+      sa = s_wall * rng.uniform(kBaseCutFraction, 0.7);
+      sb = std::min(S - kCutClearanceMm, std::max(sa + extent, s_wall + 15.0));
+      sa = std::max(sa, sb - extent);
+      break;
+    case SherdKind::Body:
+      sa = rng.uniform(s_wall + kCutClearanceMm, S - kCutClearanceMm - extent);
+      sb = sa + extent;
+      break;
   }
-  if (sb > S - 4.0) sb = S;
-  const bool has_rim = sb >= S;
+  const bool has_rim = kind == SherdKind::Rim;
 
   auto outer_at = [&](double s) { return at_arc(profile.outer, profile.arc, s); };
   auto inner_at = [&](double s) { return at_arc(profile.inner, profile.arc, s); };
 
-  // Angular range: 5–50 % of the circumference including the edges' wander, and at most the
-  // extent limit where the widest part of the piece allows.
+  // Angular range: from the kind's minimum (at least 5 %) to 50 % of the circumference including
+  // the edges' wander, at least 30 mm around, and at most the extent limit where the widest part
+  // of the piece allows.
   double r_ref = 1.0;
   for (double s = sa; s <= sb; s += 1.0) r_ref = std::max(r_ref, outer_at(s).x());
-  constexpr double kSideWander = 0.12;  // edge wander, fraction of the nominal arc, each side
-  const double f_lo = std::max(0.05 / (1.0 - 2 * kSideWander), 30.0 / (2 * kPi * r_ref));
-  const double f_hi = std::min(0.5 / (1.0 + 2 * kSideWander), (max_extent_mm - 8.0) / (2 * kPi * r_ref));
+  const double f_lo = std::max(min_nominal_fraction(kind), kMinSherdMm / (2 * kPi * r_ref));
+  const double f_hi = std::min(0.5 / (1.0 + 2 * kSideWander),
+                               (max_extent_mm - kArcMarginMm) / (2 * kPi * r_ref));
   const double fraction = f_hi > f_lo ? rng.uniform(f_lo, f_hi) : f_lo;
   const double delta = 2 * kPi * fraction;
 
   // Fracture edges: the cuts across the profile wander along s with angle; the side breaks
   // wander in angle with height. Amplitudes of a few mm.
-  const Wobble bottom_cut(rng, rng.uniform(2.0, 5.0)), top_cut(rng, rng.uniform(2.0, 5.0));
-  const Wobble left_cut(rng, rng.uniform(2.0, 5.0)), right_cut(rng, rng.uniform(2.0, 5.0));
+  auto amplitude = [&rng] { return rng.uniform(2.0, kMaxCutWobbleMm); };
+  const Wobble bottom_cut(rng, amplitude()), top_cut(rng, amplitude());
+  const Wobble left_cut(rng, amplitude()), right_cut(rng, amplitude());
   const double arc_len = delta * r_ref;
   auto s_of = [&](double u, double v) {
     const double lo = std::max(s_min * 0.85, sa + bottom_cut(v * arc_len));

@@ -63,9 +63,31 @@ Mesh revolve_section(const std::vector<Point2>& section, const std::vector<Rgb8>
 // The closed surface of revolution of the vessel's section, coloured per surface.
 Mesh revolve_vessel(const VesselProfile& profile, const ClayColours& colours, Rng& rng);
 
+// What part of the vessel a sherd keeps: the rim with its lip (maybe down to the base), the base
+// angle (the join of base and wall, not the rim), or neither — a piece of the wall alone.
+enum class SherdKind { Rim, Base, Body };
+const char* to_string(SherdKind kind);
+
+// Minimum sizes that make a sherd worth measuring. Rim: its preserved rim arc (what rim percent
+// and EVE count) and its height along the axis (enough profile to orient it and read the
+// diameter). Body: enough arc that the wall's curvature shows. Base: 5 % of the circumference.
+inline constexpr double kMinRimPercent = 10.0;
+inline constexpr double kMinRimHeightMm = 25.0;
+inline constexpr double kMinBodyArcDeg = 20.0;
+
+// The widest vessel (diameter, mm) from which a sherd of this kind keeps its minimum arc without
+// going past max_extent_mm around the axis: a limit for make_vessel_profile.
+double max_vessel_diameter(SherdKind kind, double max_extent_mm);
+
+// Whether the profile has room for a sherd of this kind within max_extent_mm (a rim sherd
+// kMinRimHeightMm tall — or as tall as max_extent_mm allows, where that is less —, a base sherd
+// that stops short of the rim, a body sherd clear of both).
+bool can_break(const VesselProfile& profile, SherdKind kind, double max_extent_mm);
+
 // A piece of the vessel between irregular fracture edges, in the vessel frame, centred on the
-// angle θ = 0. Its extents (along the profile and around the axis) stay below max_extent_mm,
-// except where 5 % of a wide vessel's circumference is longer. InputError below 30 mm.
+// angle θ = 0, of the given kind and at least its minimum size. Its extents (along the profile and
+// around the axis) stay below max_extent_mm, except where 30 mm around the axis is longer.
+// InputError below 30 mm, ProcessingError where can_break is false.
 struct SherdPiece {
   Mesh mesh;                    // closed: outer and inner skin, lip or fracture faces
   bool has_rim = false, has_base = false;
@@ -75,7 +97,7 @@ struct SherdPiece {
   Point2 centre_normal{1.0, 0.0};   // outer-surface normal (r, z) at the piece's centre, θ = 0
 };
 SherdPiece break_sherd(const VesselProfile& profile, const ClayColours& colours, Rng& rng,
-                       double max_extent_mm);
+                       double max_extent_mm, SherdKind kind);
 
 // Area-weighted vertex normals from the triangles (vertices shared only within one surface, so
 // creases between surfaces stay sharp).

@@ -3,7 +3,9 @@
 // condition a·(p×n) + ā·n = 0 (Pottmann & Wallner, Computational Line Geometry). Minimising the sum
 // of squares with |a| = 1 is a 6×6 quadratic form; ā is eliminated in closed form, leaving a 3×3
 // eigenproblem for a. That linear fit is the RANSAC hypothesis and the start of a Levenberg-Marquardt
-// refinement (Eigen) of the 4-DOF line against the true line-to-line distances.
+// refinement (Eigen) of the 4-DOF line against the line-to-line distances, each scaled by its
+// tolerance (see axis.h: a distance floor plus an angle times the point's distance to the axis),
+// so that a far point with a slightly tilted normal weighs no more than its normal deserves.
 #include "processing/axis/axis.h"
 
 #include "core/errors.h"
@@ -14,10 +16,12 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <numeric>
 #include <optional>
 #include <random>
+#include <unordered_map>
 
 namespace sherd::axis {
 namespace {
@@ -40,13 +44,110 @@ Vec3d any_perpendicular(const Vec3d& v) {
   return v.cross(helper).normalized();
 }
 
-// Signed distance between a normal line and the axis, or nullopt when they are too close to
-// parallel for that distance to mean anything (see Params::min_normal_axis_angle_deg).
-std::optional<double> line_distance(const NormalLine& l, const Line& axis, double min_sin) {
+// Points binned into cubic cells of one size; a search within that size visits the 27 cells
+// around the query. Hand-written: sherd_axis links no spatial index (PCL/FLANN would need their
+// libraries), and every search here has one fixed radius, the case a uniform grid serves best.
+class RadiusGrid {
+ public:
+  RadiusGrid(const std::vector<Vec3d>& points, double cell) : points_(points), cell_(cell) {
+    for (std::uint32_t i = 0; i < points.size(); ++i) cells_[key(cell_of(points[i]))].push_back(i);
+  }
+  // Calls f(index, squared distance) for every point within `radius` (≤ the cell size) of q.
+  template <class F>
+  void for_each_within(const Vec3d& q, double radius, F&& f) const {
+    const auto c = cell_of(q);
+    const double r2 = radius * radius;
+    for (int dx = -1; dx <= 1; ++dx)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dz = -1; dz <= 1; ++dz) {
+          const auto it = cells_.find(key({c[0] + dx, c[1] + dy, c[2] + dz}));
+          if (it == cells_.end()) continue;
+          for (auto j : it->second) {
+            const double d2 = (points_[j] - q).squaredNorm();
+            if (d2 <= r2) f(j, d2);
+          }
+        }
+  }
+
+ private:
+  std::array<std::int64_t, 3> cell_of(const Vec3d& p) const {
+    return {static_cast<std::int64_t>(std::floor(p.x() / cell_)), static_cast<std::int64_t>(std::floor(p.y() / cell_)),
+            static_cast<std::int64_t>(std::floor(p.z() / cell_))};
+  }
+  static std::int64_t key(const std::array<std::int64_t, 3>& c) {
+    constexpr std::int64_t kBias = 1 << 20;  // cells of a sherd-sized cloud stay far inside ±2^20
+    return ((c[0] + kBias) << 42) | ((c[1] + kBias) << 21) | (c[2] + kBias);
+  }
+  const std::vector<Vec3d>& points_;
+  double cell_;
+  std::unordered_map<std::int64_t, std::vector<std::uint32_t>> cells_;
+};
+
+// Median distance to the nearest neighbour over a sample of points; `probe_mm` bounds the search
+// (points with no neighbour that close do not count; if none has one, the probe size is returned).
+double median_spacing(const std::vector<Vec3d>& points, std::mt19937_64& rng, double probe_mm) {
+  const RadiusGrid grid(points, probe_mm);
+  std::uniform_int_distribution<std::size_t> pick(0, points.size() - 1);
+  std::vector<double> nearest;
+  for (int k = 0; k < 1000; ++k) {
+    const std::size_t i = pick(rng);
+    double best = std::numeric_limits<double>::infinity();
+    grid.for_each_within(points[i], probe_mm, [&](std::uint32_t j, double d2) {
+      if (j != i && d2 > 0.0) best = std::min(best, d2);
+    });
+    if (std::isfinite(best)) nearest.push_back(std::sqrt(best));
+  }
+  if (nearest.empty()) return probe_mm;
+  std::nth_element(nearest.begin(), nearest.begin() + nearest.size() / 2, nearest.end());
+  return nearest[nearest.size() / 2];
+}
+
+// The normal of the plane fitted (PCA) to the neighbours of `at` within `radius` whose input
+// normals agree with its own (the opposite skin of the wall, ~180° away, is left out), oriented
+// like the input normal; nullopt where too few neighbours agree for a plane.
+std::optional<Vec3d> pca_normal(const std::vector<Vec3d>& points, const std::vector<Vec3d>& normals,
+                                const RadiusGrid& grid, std::uint32_t at, double radius, double min_cos) {
+  constexpr int kMinNeighbours = 8;
+  Vec3d sum = Vec3d::Zero();
+  Eigen::Matrix3d sum_outer = Eigen::Matrix3d::Zero();
+  int count = 0;
+  grid.for_each_within(points[at], radius, [&](std::uint32_t j, double) {
+    if (normals[j].dot(normals[at]) < min_cos) return;
+    const Vec3d d = points[j] - points[at];  // relative to the query: no loss of precision
+    sum += d;
+    sum_outer += d * d.transpose();
+    ++count;
+  });
+  if (count < kMinNeighbours) return std::nullopt;
+  const Vec3d mean = sum / count;
+  const Eigen::Matrix3d covariance = sum_outer / count - mean * mean.transpose();
+  const Vec3d n = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(covariance).eigenvectors().col(0);
+  if (!n.allFinite()) return std::nullopt;
+  return n.dot(normals[at]) < 0.0 ? Vec3d(-n) : n;
+}
+
+// How far a normal line may miss the axis: see Params::inlier_distance_mm / inlier_angle_deg.
+struct Tolerance {
+  double floor_mm;
+  double slope;  // tan(inlier_angle)
+};
+
+// Distance between a normal line and the axis, signed and divided by the line's tolerance, or
+// nullopt when they are too close to parallel for that distance to mean anything (see
+// Params::min_normal_axis_angle_deg). `distance_mm`, if given, receives the unscaled distance.
+std::optional<double> scaled_miss(const NormalLine& l, const Line& axis, double min_sin, const Tolerance& tol,
+                                  double* distance_mm = nullptr) {
   const Vec3d common = axis.direction.cross(l.normal);
   const double sin_angle = common.norm();
   if (sin_angle < min_sin) return std::nullopt;
-  return (l.point - axis.point).dot(common) / sin_angle;
+  const Vec3d w = l.point - axis.point;
+  const double d = w.dot(common) / sin_angle;
+  // Position along the normal line of its closest approach to the axis: the lever of the normal's
+  // angular error.
+  const double cos_angle = l.normal.dot(axis.direction);
+  const double along = (w.dot(axis.direction) * cos_angle - w.dot(l.normal)) / (sin_angle * sin_angle);
+  if (distance_mm) *distance_mm = d;
+  return d / (tol.floor_mm + std::abs(along) * tol.slope);
 }
 
 // Linear line-complex fit of the axis to lines[indices]; nullopt if the system is degenerate.
@@ -93,6 +194,7 @@ struct AxisDistanceFunctor {
 
   const std::vector<NormalLine>* lines = nullptr;
   const std::vector<std::uint32_t>* indices = nullptr;
+  Tolerance tolerance{};
   Line start;
   Vec3d e1, e2;
 
@@ -106,21 +208,21 @@ struct AxisDistanceFunctor {
   int operator()(const Eigen::VectorXd& x, Eigen::VectorXd& residuals) const {
     const Line axis = line_at(x);
     for (std::size_t k = 0; k < indices->size(); ++k) {
-      const NormalLine& l = (*lines)[(*indices)[k]];
-      const Vec3d common = axis.direction.cross(l.normal);
-      // Inliers were chosen away from parallel, so the norm is bounded away from zero.
-      residuals[static_cast<Eigen::Index>(k)] =
-          (l.point - axis.point).dot(common) / std::max(common.norm(), 1e-6);
+      // Inliers were chosen away from parallel; a line that turns parallel during the refinement
+      // is capped at the MSAC cap (1) rather than dropped, so the sum stays continuous.
+      const auto miss = scaled_miss((*lines)[(*indices)[k]], axis, 1e-6, tolerance);
+      residuals[static_cast<Eigen::Index>(k)] = miss ? *miss : 1.0;
     }
     return 0;
   }
 };
 
 Line refine(const std::vector<NormalLine>& lines, const std::vector<std::uint32_t>& indices,
-            const Line& start) {
+            const Line& start, const Tolerance& tolerance) {
   AxisDistanceFunctor functor;
   functor.lines = &lines;
   functor.indices = &indices;
+  functor.tolerance = tolerance;
   functor.start = start;
   functor.e1 = any_perpendicular(start.direction);
   functor.e2 = start.direction.cross(functor.e1);
@@ -134,33 +236,33 @@ Line refine(const std::vector<NormalLine>& lines, const std::vector<std::uint32_
 
 struct Scored {
   std::vector<std::uint32_t> inliers;
-  double rms = 0.0;  // of the inliers' distances
+  double rms = 0.0;  // of the inliers' distances, mm
 };
 
-Scored score(const std::vector<NormalLine>& lines, const Line& axis, double threshold,
+Scored score(const std::vector<NormalLine>& lines, const Line& axis, const Tolerance& tolerance,
              double min_sin) {
   Scored s;
   double sum_sq = 0.0;
   for (std::uint32_t i = 0; i < lines.size(); ++i) {
-    const auto d = line_distance(lines[i], axis, min_sin);
-    if (d && std::abs(*d) <= threshold) {
+    double d = 0.0;
+    const auto miss = scaled_miss(lines[i], axis, min_sin, tolerance, &d);
+    if (miss && std::abs(*miss) <= 1.0) {
       s.inliers.push_back(i);
-      sum_sq += *d * *d;
+      sum_sq += d * d;
     }
   }
   if (!s.inliers.empty()) s.rms = std::sqrt(sum_sq / s.inliers.size());
   return s;
 }
 
-// MSAC cost: truncated squared distance, so that a hypothesis is judged by how well its inliers
-// fit, not only by how many there are.
-double msac_cost(const std::vector<NormalLine>& lines, const Line& axis, double threshold,
+// MSAC cost: truncated squared scaled miss, so that a hypothesis is judged by how well its
+// inliers fit, not only by how many there are.
+double msac_cost(const std::vector<NormalLine>& lines, const Line& axis, const Tolerance& tolerance,
                  double min_sin) {
-  const double cap = threshold * threshold;
   double cost = 0.0;
   for (const auto& l : lines) {
-    const auto d = line_distance(l, axis, min_sin);
-    cost += d ? std::min(*d * *d, cap) : cap;
+    const auto miss = scaled_miss(l, axis, min_sin, tolerance);
+    cost += miss ? std::min(*miss * *miss, 1.0) : 1.0;
   }
   return cost;
 }
@@ -231,18 +333,35 @@ AxisEstimate estimate_axis(const Cloud& sherd, const Params& params) {
   Vec3d centroid = Vec3d::Zero();
   for (auto i : chosen) centroid += sherd.points[i].cast<double>();
   centroid /= static_cast<double>(chosen.size());
+  // All points take part in the normal re-estimation, only the chosen ones become lines.
+  std::vector<Vec3d> points(sherd.size()), input_normals(sherd.size());
+  for (std::size_t i = 0; i < sherd.size(); ++i) {
+    points[i] = sherd.points[i].cast<double>() - centroid;
+    const Vec3d n = sherd.normals[i].cast<double>();
+    // An unset (zero) normal carries no direction: it stays zero, agrees with no neighbour.
+    input_normals[i] = n.norm() < 0.5 ? Vec3d::Zero() : Vec3d(n.normalized());
+  }
+  constexpr double kSpacingProbeMm = 2.0;  // spacings coarser than this leave the radius at its cap
+  const double radius =
+      params.normal_radius_mm > 0.0
+          ? params.normal_radius_mm
+          : std::clamp(params.normal_radius_spacings * median_spacing(points, rng, kSpacingProbeMm), 1.0, 5.0);
+  const RadiusGrid grid(points, radius);
+  const double min_cos = std::cos(params.normal_agreement_deg * kDegToRad);
   std::vector<NormalLine> lines;
   lines.reserve(chosen.size());
   double sum_sq_radius = 0.0;
   for (auto i : chosen) {
-    const Vec3d n = sherd.normals[i].cast<double>();
-    if (n.norm() < 0.5) continue;  // an unset (zero) normal carries no direction
-    lines.push_back({sherd.points[i].cast<double>() - centroid, n.normalized()});
+    if (input_normals[i].isZero()) continue;
+    const auto n = pca_normal(points, input_normals, grid, i, radius, min_cos);
+    if (!n) continue;
+    lines.push_back({points[i], *n});
     sum_sq_radius += lines.back().point.squaredNorm();
   }
   if (lines.size() < kMinLines) {
-    return not_found(estimate, fmt::format("too few normals: {} valid (at least {} needed)",
-                                           lines.size(), kMinLines));
+    return not_found(estimate, fmt::format("too few normals: {} points with a neighbourhood for a "
+                                           "normal within {:.1f} mm (at least {} needed)",
+                                           lines.size(), radius, kMinLines));
   }
   const double scale = std::max(std::sqrt(sum_sq_radius / lines.size()), 1e-6);
 
@@ -260,7 +379,7 @@ AxisEstimate estimate_axis(const Cloud& sherd, const Params& params) {
   }
 
   const double min_sin = std::sin(params.min_normal_axis_angle_deg * kDegToRad);
-  const double threshold = params.inlier_distance_mm;
+  const Tolerance tolerance{params.inlier_distance_mm, std::tan(params.inlier_angle_deg * kDegToRad)};
   constexpr std::size_t kSampleSize = 6;  // 5 lines fix a linear complex; one more for noise
   std::uniform_int_distribution<std::uint32_t> pick(0, static_cast<std::uint32_t>(lines.size() - 1));
   std::optional<Line> best;
@@ -270,7 +389,7 @@ AxisEstimate estimate_axis(const Cloud& sherd, const Params& params) {
     for (auto& s : sample) s = pick(rng);
     const auto hypothesis = fit_line_complex(lines, sample, scale);
     if (!hypothesis) continue;
-    const double cost = msac_cost(lines, *hypothesis, threshold, min_sin);
+    const double cost = msac_cost(lines, *hypothesis, tolerance, min_sin);
     if (cost < best_cost) {
       best_cost = cost;
       best = hypothesis;
@@ -279,14 +398,14 @@ AxisEstimate estimate_axis(const Cloud& sherd, const Params& params) {
   if (!best) return not_found(estimate, "not rotational: no line complex fits the normals");
 
   // Refit on the inliers, refine, and once more with the inliers of the refined axis.
-  Scored scored = score(lines, *best, threshold, min_sin);
+  Scored scored = score(lines, *best, tolerance, min_sin);
   Line axis = *best;
   for (int round = 0; round < 2 && scored.inliers.size() >= kMinLines; ++round) {
     if (round == 0) {
       if (auto linear = fit_line_complex(lines, scored.inliers, scale)) axis = *linear;
     }
-    axis = refine(lines, scored.inliers, axis);
-    scored = score(lines, axis, threshold, min_sin);
+    axis = refine(lines, scored.inliers, axis, tolerance);
+    scored = score(lines, axis, tolerance, min_sin);
   }
   estimate.inlier_share = static_cast<double>(scored.inliers.size()) / lines.size();
   estimate.rms_mm = scored.rms;
@@ -315,7 +434,7 @@ AxisEstimate estimate_axis(const Cloud& sherd, const Params& params) {
   double angle_sq = 0.0, offset_sq = 0.0;
   for (int b = 0; b < params.bootstrap_resamples; ++b) {
     for (auto& r : resample) r = scored.inliers[pick_inlier(rng)];
-    const Line replica = refine(lines, resample, final_axis);
+    const Line replica = refine(lines, resample, final_axis, tolerance);
     angle_sq += std::pow(angle_between_axes_deg(replica.direction, final_axis.direction), 2);
     offset_sq += std::pow(point_to_line_distance(final_axis.point, replica), 2);
   }

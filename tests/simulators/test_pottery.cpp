@@ -5,6 +5,7 @@
 #include "simulators/pottery.h"
 #include "simulators/vessel.h"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -50,6 +51,32 @@ const SceneObject& object_of(const Scene& scene, const SherdTruth& truth) {
   for (const auto& o : scene.objects)
     if (o.name == truth.id) return o;
   throw std::runtime_error("no object for " + truth.id);
+}
+
+// A sherd measured on its mesh about its truth axis: angular extent, height along the axis and,
+// for a rim sherd, the preserved rim arc (the lip's vertices, at the top).
+struct MeshMeasure {
+  double arc_deg = 0.0, height_mm = 0.0, rim_percent = 0.0;
+};
+
+MeshMeasure measure_on_mesh(const Scene& scene, const SherdTruth& truth) {
+  const AxisFrame axis(truth);
+  const auto& points = object_of(scene, truth).mesh.vertices.points;
+  double a0 = 1e9, a1 = -1e9, h0 = 1e9, h1 = -1e9;
+  for (const auto& p : points) {
+    a0 = std::min(a0, axis.angle(p));
+    a1 = std::max(a1, axis.angle(p));
+    h0 = std::min(h0, axis.height(p));
+    h1 = std::max(h1, axis.height(p));
+  }
+  double r0 = 1e9, r1 = -1e9;
+  for (const auto& p : points) {
+    if (axis.height(p) > h1 - 0.3) {
+      r0 = std::min(r0, axis.angle(p));
+      r1 = std::max(r1, axis.angle(p));
+    }
+  }
+  return {(a1 - a0) * 180.0 / kPi, h1 - h0, (r1 - r0) / (2 * kPi) * 100.0};
 }
 
 TEST(Vessel, MeshVolumeEqualsRevolvedSectionForEveryFamily) {
@@ -130,35 +157,18 @@ TEST_P(SherdScenes, ArcRimPercentAndHeightMatchTheMesh) {
       ++total;
       rims += truth.has_rim;
       bases += truth.has_base;
-      const AxisFrame axis(truth);
-      const auto& points = object_of(scene, truth).mesh.vertices.points;
-      double a0 = 1e9, a1 = -1e9, h0 = 1e9, h1 = -1e9;
-      for (const auto& p : points) {
-        a0 = std::min(a0, axis.angle(p));
-        a1 = std::max(a1, axis.angle(p));
-        h0 = std::min(h0, axis.height(p));
-        h1 = std::max(h1, axis.height(p));
-      }
-      const double arc_deg = (a1 - a0) * 180.0 / kPi;
-      EXPECT_NEAR(arc_deg, truth.arc_deg, 0.2) << truth.id << " seed " << seed;
-      EXPECT_GE(arc_deg, 0.05 * 360.0);
-      EXPECT_LE(arc_deg, 0.50 * 360.0);
-      EXPECT_NEAR(h1 - h0, truth.height_mm, 0.01);
+      const MeshMeasure measured = measure_on_mesh(scene, truth);
+      EXPECT_NEAR(measured.arc_deg, truth.arc_deg, 0.2) << truth.id << " seed " << seed;
+      EXPECT_GE(measured.arc_deg, 0.05 * 360.0);
+      EXPECT_LE(measured.arc_deg, 0.50 * 360.0);
+      EXPECT_NEAR(measured.height_mm, truth.height_mm, 0.01);
       // Sherd sized for the 300 mm plate.
       const Vec3d extent = truth.bbox.extent();
       EXPECT_LE(extent.maxCoeff(), 125.0);
       EXPECT_GE(extent.maxCoeff(), 25.0);
       if (truth.has_rim) {
         ASSERT_TRUE(truth.rim_percent && truth.rim_diameter_mm);
-        // The preserved rim: the lip's vertices, at the top.
-        double r0 = 1e9, r1 = -1e9;
-        for (const auto& p : points) {
-          if (axis.height(p) > h1 - 0.3) {
-            r0 = std::min(r0, axis.angle(p));
-            r1 = std::max(r1, axis.angle(p));
-          }
-        }
-        EXPECT_NEAR(*truth.rim_percent, (r1 - r0) / (2 * kPi) * 100.0, 0.3) << truth.id;
+        EXPECT_NEAR(*truth.rim_percent, measured.rim_percent, 0.3) << truth.id;
         EXPECT_LE(*truth.rim_percent, truth.arc_deg / 3.6 + 1e-9);
       } else {
         EXPECT_FALSE(truth.rim_percent || truth.rim_diameter_mm);
@@ -201,6 +211,62 @@ TEST_P(SherdScenes, SherdsAreClosedOutwardAndApart) {
           nearest = std::min(nearest, static_cast<double>((pa[i] - pb[j]).norm()));
         }
       EXPECT_GT(nearest, 3.0) << sherds[a]->name << " touches " << sherds[b]->name;
+    }
+  }
+}
+
+// The tray's composition over many seeds and sizes: rim sherds in about half the places (at least
+// one; two from three sherds on), a base sherd from three on, body sherds in the rest, the kinds'
+// order varying with the seed; rim sherds big enough to measure (≥ 10 % of the rim, ≥ 25 mm
+// tall, measured on the mesh) wherever the slot has room, amphora body sherds curved (≥ 20°).
+TEST_P(SherdScenes, TrayIsMostlyRimSherdsWithBasesAndBodies) {
+  constexpr int kSeeds = 12;
+  for (int k = 1; k <= kMaxSherds; ++k) {
+    std::vector<int> rim_at(static_cast<std::size_t>(k), 0);  // seeds with a rim in place i
+    for (std::uint64_t seed = 1; seed <= kSeeds; ++seed) {
+      const Scene scene = make_scene({.seed = seed * 1000 + k, .kind = GetParam(), .sherds = k});
+      ASSERT_EQ(static_cast<int>(scene.truth.size()), k);
+      int rims = 0, bases = 0, bodies = 0;
+      for (std::size_t i = 0; i < scene.truth.size(); ++i) {
+        const SherdTruth& truth = scene.truth[i];
+        const MeshMeasure measured = measure_on_mesh(scene, truth);
+        const auto& outer = truth.outer_profile;
+        const auto& inner = truth.inner_profile;
+        const std::string where = fmt::format("{} k={} seed={}", truth.id, k, seed);
+        if (truth.has_rim) {
+          ++rims;
+          ++rim_at[i];
+          // The rim is really there: the piece reaches the top of the outer wall.
+          EXPECT_GE(truth.preserved_z_mm[1], outer.back()[1]) << where;
+          EXPECT_GE(measured.rim_percent, kMinRimPercent) << where;
+          // A frame of 10 sherds leaves 30 mm a slot: 25 mm plus the fracture's wander do not fit.
+          const bool roomy = GetParam() == SceneKind::Plate || k < 10;
+          EXPECT_GE(measured.height_mm, roomy ? kMinRimHeightMm : 24.0) << where;
+        } else {
+          // Without the lip the piece stays below the rim's top on both skins.
+          EXPECT_LT(truth.preserved_z_mm[1], std::max(outer.back()[1], inner.back()[1])) << where;
+          truth.has_base ? ++bases : ++bodies;
+        }
+        if (!truth.has_rim && !truth.has_base) {
+          // A body sherd keeps neither the base angle nor the base: it starts above the floor.
+          EXPECT_GT(truth.preserved_z_mm[0], 0.0) << where;
+          if (truth.family == "amphora") EXPECT_GE(measured.arc_deg, kMinBodyArcDeg) << where;
+        }
+      }
+      EXPECT_GE(rims, 1) << "k=" << k << " seed " << seed;
+      EXPECT_NEAR(rims, 0.5 * k, 0.5) << "k=" << k << " seed " << seed;
+      if (k >= 3) {
+        EXPECT_GE(rims, 2) << "k=" << k << " seed " << seed;
+        EXPECT_GE(bases, 1) << "k=" << k << " seed " << seed;
+      }
+      if (k >= 4) EXPECT_GE(bodies, 1) << "k=" << k << " seed " << seed;
+    }
+    // The order is shuffled: from two sherds on, no place is always or never a rim.
+    if (k >= 2) {
+      for (int i = 0; i < k; ++i) {
+        EXPECT_GT(rim_at[i], 0) << "k=" << k << " place " << i;
+        EXPECT_LT(rim_at[i], kSeeds) << "k=" << k << " place " << i;
+      }
     }
   }
 }
