@@ -318,7 +318,7 @@ StationConfig load_station_config(const fs::path& file) {
   Section simulation = section("simulation");
   simulation.read("seed", sim.seed);
   simulation.read("scene", sim.scene, {"frame", "plate", "vessel", "empty"});
-  simulation.read("sherds", sim.sherds, from_to(1, 64));
+  simulation.read("sherds", sim.sherds, from_to(1, 10));
   simulation.read("background", sim.background, {"black", "white"});
   simulation.reject_unknown_keys();
 

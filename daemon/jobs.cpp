@@ -73,8 +73,8 @@ void JobRunner::start() {
       to_process_.push_back(scan.id);
     }
   }
-  acquisition_thread_ = std::thread([this] { acquisition_loop(); });
-  processing_thread_ = std::thread([this] { processing_loop(); });
+  acquisition_thread_ = std::thread([this] { worker_loop(to_acquire_, acquiring_, &JobRunner::acquire); });
+  processing_thread_ = std::thread([this] { worker_loop(to_process_, processing_, &JobRunner::process); });
 }
 
 void JobRunner::stop() {
@@ -158,37 +158,21 @@ nlohmann::json JobRunner::status() const {
           {"database", config_.paths.database.string()}};
 }
 
-void JobRunner::acquisition_loop() {
+void JobRunner::worker_loop(std::deque<std::string>& queue, std::string& in_hand,
+                            void (JobRunner::*work)(const std::string&)) {
   while (true) {
     std::string scan_id;
     {
       std::unique_lock lock(mutex_);
-      work_.wait(lock, [&] { return stopping_ || !to_acquire_.empty(); });
+      work_.wait(lock, [&] { return stopping_ || !queue.empty(); });
       if (stopping_) return;
-      scan_id = to_acquire_.front();
-      to_acquire_.pop_front();
-      acquiring_ = scan_id;
+      scan_id = queue.front();
+      queue.pop_front();
+      in_hand = scan_id;
     }
-    acquire(scan_id);
+    (this->*work)(scan_id);
     std::lock_guard lock(mutex_);
-    acquiring_.clear();
-  }
-}
-
-void JobRunner::processing_loop() {
-  while (true) {
-    std::string scan_id;
-    {
-      std::unique_lock lock(mutex_);
-      work_.wait(lock, [&] { return stopping_ || !to_process_.empty(); });
-      if (stopping_) return;
-      scan_id = to_process_.front();
-      to_process_.pop_front();
-      processing_ = scan_id;
-    }
-    process(scan_id);
-    std::lock_guard lock(mutex_);
-    processing_.clear();
+    in_hand.clear();
   }
 }
 

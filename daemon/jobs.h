@@ -56,8 +56,9 @@ class JobRunner {
   nlohmann::json status() const;
 
  private:
-  void acquisition_loop();
-  void processing_loop();
+  // Takes scan ids from `queue` one at a time (marking the one `in_hand`) and runs `work` on each.
+  void worker_loop(std::deque<std::string>& queue, std::string& in_hand,
+                   void (JobRunner::*work)(const std::string&));
   void acquire(const std::string& scan_id);
   void process(const std::string& scan_id);
   void fail(const std::string& scan_id, const std::string& reason);

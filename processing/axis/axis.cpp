@@ -236,7 +236,8 @@ Line refine(const std::vector<NormalLine>& lines, const std::vector<std::uint32_
 
 struct Scored {
   std::vector<std::uint32_t> inliers;
-  double rms = 0.0;  // of the inliers' distances, mm
+  std::size_t informative = 0;  // lines not near-parallel to the axis: those that can meet it
+  double rms = 0.0;             // of the inliers' distances, mm
 };
 
 Scored score(const std::vector<NormalLine>& lines, const Line& axis, const Tolerance& tolerance,
@@ -246,6 +247,7 @@ Scored score(const std::vector<NormalLine>& lines, const Line& axis, const Toler
   for (std::uint32_t i = 0; i < lines.size(); ++i) {
     double d = 0.0;
     const auto miss = scaled_miss(lines[i], axis, min_sin, tolerance, &d);
+    if (miss) ++s.informative;
     if (miss && std::abs(*miss) <= 1.0) {
       s.inliers.push_back(i);
       sum_sq += d * d;
@@ -359,8 +361,9 @@ AxisEstimate estimate_axis(const Cloud& sherd, const Params& params) {
     sum_sq_radius += lines.back().point.squaredNorm();
   }
   if (lines.size() < kMinLines) {
-    return not_found(estimate, fmt::format("too few normals: {} points with a neighbourhood for a "
-                                           "normal within {:.1f} mm (at least {} needed)",
+    return not_found(estimate, fmt::format("not a surface: only {} points have enough neighbours "
+                                           "with agreeing normals within {:.1f} mm for a normal (at "
+                                           "least {} needed)",
                                            lines.size(), radius, kMinLines));
   }
   const double scale = std::max(std::sqrt(sum_sq_radius / lines.size()), 1e-6);
@@ -407,7 +410,10 @@ AxisEstimate estimate_axis(const Cloud& sherd, const Params& params) {
     axis = refine(lines, scored.inliers, axis, tolerance);
     scored = score(lines, axis, tolerance, min_sin);
   }
-  estimate.inlier_share = static_cast<double>(scored.inliers.size()) / lines.size();
+  // The share among the lines that can meet the axis at all: the floor of a plate or the flat
+  // underside of a base (normals along the axis) says nothing for or against it.
+  estimate.inlier_share =
+      static_cast<double>(scored.inliers.size()) / static_cast<double>(std::max<std::size_t>(scored.informative, 1));
   estimate.rms_mm = scored.rms;
   estimate.direction = axis.direction;
   // The axis point closest to the centroid: the centroid is the origin of the centred lines.

@@ -25,7 +25,7 @@ struct AxisEstimate {
   double angle_sd_deg = 0.0;
   double offset_sd_mm = 0.0;
   double rms_mm = 0.0;              // RMS distance of inlier normal lines to the axis
-  double inlier_share = 0.0;
+  double inlier_share = 0.0;        // among the normal lines not near-parallel to the axis
   std::string reason;               // when !found: too few points, too flat, not rotational, …
 };
 
@@ -33,9 +33,11 @@ struct Params {
   int ransac_iterations = 400;
   // A normal line is an inlier when it misses the axis by at most
   //   inlier_distance_mm + inlier_angle_deg (as a slope) × its point's distance along it to the axis:
-  // the floor covers point noise, the angular part the residual normal error.
+  // the floor covers point noise, the angular part the residual normal error. On the simulated
+  // station (bench_accuracy, 10 seeds) 0.5° drops good sherds, 1° leaves a 90th-percentile axis
+  // error of 1.05°, 2° one of 0.48°.
   double inlier_distance_mm = 0.3;
-  double inlier_angle_deg = 1.0;
+  double inlier_angle_deg = 2.0;
   // Normal re-estimation: PCA radius (0 = from the data: normal_radius_spacings × the median
   // nearest-neighbour spacing, clamped to [1, 5] mm) and the largest angle between the input
   // normals of a point and of a neighbour that is used (the other skin is ~180° away).

@@ -24,6 +24,8 @@ namespace {
 constexpr double kDegToRad = M_PI / 180.0;
 constexpr double kTwoPi = 2.0 * M_PI;
 
+using Vec2 = Eigen::Vector2d;
+
 struct CylPoint {
   double r, h, phi;
   double n_r, n_h;  // normal components along the point's radial direction and the axis
@@ -146,56 +148,112 @@ double median_radius(const std::vector<CylPoint>& pts) {
   return r[r.size() / 2];
 }
 
-// What one axial end of the sherd looks like.
+// What one axial end of the sherd looks like, seen in the (r, h) half-plane over its whole arc.
 struct EndShape {
-  double coverage_share = 0.0;  // arc of the end band / arc of the sherd
-  double mean_radius = 0.0;
-  bool reaches_axis = false;    // closes towards the axis: a base
-  bool flat_underside = false;  // a wide face pointing out of this end along the axis
+  bool reaches_axis = false;  // closes towards the axis: the middle of a base
+  // The end's height, azimuth by azimuth, less a linear trend (what a slightly tilted axis
+  // leaves), varies by less than kFlatEndMm over the middle of the arc: a lip or a resting
+  // underside (both perpendicular to the axis), not a wandering break.
+  bool level = false;
+  // Radial extent of the faces that look out of the sherd along the axis, at the very end
+  // (within kEndFaceMm) and near it (within kRecessMm): a lip's rounded top spans less than a
+  // wall thickness; a base's underside more; a foot ring about 1.5 walls at the end and, with the
+  // underside recessed inside it, much more near it; a break through a near-horizontal wall
+  // nothing (its face looks sideways).
+  double end_face_span_mm = 0.0;
+  double near_face_span_mm = 0.0;
 };
 
-EndShape end_shape(const std::vector<CylPoint>& pts, bool top, double band_mm, double sherd_arc_deg,
-                   double max_radius) {
-  double extreme = top ? -std::numeric_limits<double>::infinity() : std::numeric_limits<double>::infinity();
-  for (const auto& p : pts) extreme = top ? std::max(extreme, p.h) : std::min(extreme, p.h);
-  std::vector<double> phis;
-  std::vector<CylPoint> band;
-  for (const auto& p : pts) {
-    if (std::abs(p.h - extreme) <= band_mm) {
-      phis.push_back(p.phi);
-      band.push_back(p);
-    }
-  }
+constexpr double kFlatEndMm = 1.0;  // a break wanders by 2 mm or more along the arc
+constexpr double kEndFaceMm = 1.5;  // deeper than the rounding of a lip's top
+constexpr double kRecessMm = 8.0;   // deeper than a foot ring is high (3–7 mm)
+
+EndShape end_shape(const std::vector<CylPoint>& pts, bool top, double max_radius, double arc_middle) {
+  const double sign = top ? 1.0 : -1.0;
   EndShape s;
-  if (band.empty()) return s;
-  const double radius = median_radius(band);
-  s.coverage_share = angular_coverage(phis, radius).degrees / std::max(sherd_arc_deg, 1e-9);
-  double min_r = std::numeric_limits<double>::infinity(), sum_r = 0.0;
-  double away_min_r = std::numeric_limits<double>::infinity(), away_max_r = 0.0;
-  std::size_t away = 0;
-  for (const auto& p : band) {
+  // Per-azimuth extreme height, in bins of ~2 mm of arc at the median radius.
+  const double radius = std::max(median_radius(pts), 1.0);
+  const double bin = 2.0 / radius;
+  std::vector<std::pair<double, double>> by_phi;  // (phi, sign × h)
+  by_phi.reserve(pts.size());
+  // Centred on the arc's middle, a sherd's azimuths do not wrap at ±pi.
+  for (const auto& p : pts) by_phi.push_back({wrap_angle(p.phi - arc_middle), sign * p.h});
+  std::sort(by_phi.begin(), by_phi.end());
+  std::vector<Vec2> extremes;  // (phi, extreme sign × h)
+  for (std::size_t i = 0; i < by_phi.size();) {
+    const double start = by_phi[i].first;
+    double extreme = -std::numeric_limits<double>::infinity();
+    std::size_t n = 0;
+    for (; i < by_phi.size() && by_phi[i].first < start + bin; ++i, ++n) extreme = std::max(extreme, by_phi[i].second);
+    if (n >= 3) extremes.push_back({start, extreme});
+  }
+  if (extremes.size() >= 5) {
+    // The middle 60 % of the arc: the side breaks (wandering by up to ~12 % of the arc each)
+    // round the end off at both sides.
+    const std::size_t cut = extremes.size() / 5;
+    const std::vector<Vec2> middle(extremes.begin() + cut, extremes.end() - cut);
+    Eigen::MatrixXd design(middle.size(), 2);
+    Eigen::VectorXd heights(middle.size());
+    for (std::size_t k = 0; k < middle.size(); ++k) {
+      design.row(k) << 1.0, middle[k].x();
+      heights[k] = middle[k].y();
+    }
+    const Eigen::VectorXd trend = design.colPivHouseholderQr().solve(heights);
+    std::vector<double> residual(middle.size());
+    for (std::size_t k = 0; k < middle.size(); ++k) residual[k] = heights[k] - design.row(k).dot(trend);
+    std::sort(residual.begin(), residual.end());
+    const double spread = residual[residual.size() * 9 / 10] - residual[residual.size() / 10];
+    s.level = spread <= kFlatEndMm;
+  }
+  double end = -std::numeric_limits<double>::infinity();
+  for (const auto& p : pts) end = std::max(end, sign * p.h);
+  double min_r = std::numeric_limits<double>::infinity();
+  constexpr double kNone = std::numeric_limits<double>::infinity();
+  std::array<double, 2> lo{kNone, kNone}, hi{-kNone, -kNone};  // [end, near]
+  for (const auto& p : pts) {
+    const double depth = end - sign * p.h;
+    if (depth > kRecessMm) continue;
     min_r = std::min(min_r, p.r);
-    sum_r += p.r;
-    if ((top ? p.n_h : -p.n_h) > 0.9) {
-      ++away;
-      away_min_r = std::min(away_min_r, p.r);
-      away_max_r = std::max(away_max_r, p.r);
+    if (sign * p.n_h <= 0.9) continue;
+    for (int k = depth <= kEndFaceMm ? 0 : 1; k < 2; ++k) {
+      lo[k] = std::min(lo[k], p.r);
+      hi[k] = std::max(hi[k], p.r);
     }
   }
-  s.mean_radius = sum_r / band.size();
   s.reaches_axis = min_r < 0.15 * max_radius;
-  // A fracture or lip face spans only the wall thickness radially; an underside spans the base.
-  s.flat_underside = away > 0.3 * band.size() && away_max_r - away_min_r > 0.25 * max_radius;
+  s.end_face_span_mm = hi[0] > lo[0] ? hi[0] - lo[0] : 0.0;
+  s.near_face_span_mm = hi[1] > lo[1] ? hi[1] - lo[1] : 0.0;
   return s;
 }
 
-// Orientation rule, in order of strength:
-//  1. a base closes towards the axis: the end that reaches the axis is the base;
-//  2. a rim is a lip: the boundary is perpendicular to the axis across the whole preserved arc, so
-//     the end whose extreme band covers (nearly) the sherd's arc is the rim, a break covers little;
-//     when both ends look flat, a clearly better covered end is taken, uncertain;
-//  3. otherwise (a body sherd): the wider end is taken as the rim — most vessels open upwards —
-//     and the orientation is marked uncertain.
+// What a potter's profile tells about an end (see orient):
+//   lip      — rounded (or flat) end where the outer and inner skins meet, level all along the
+//              rim, its outward face no wider than the wall;
+//   base     — the end closes towards the axis, or a level underside / foot ring wider than the
+//              wall faces out of it along the axis;
+//   fracture — a break: wanders in height along the arc.
+enum class EndKind { Lip, Base, Fracture };
+
+EndKind classify(const EndShape& e, double wall_mm) {
+  constexpr double kWiderThanWall = 1.2;  // a foot ring is ≥ 1.3 walls wide, a flat lip 1
+  constexpr double kFootRing = 0.9;       // a foot ring's end, allowing for a thick floor's wall
+  constexpr double kRecessedUnderside = 2.5;
+  constexpr double kLipTop = 0.2;         // a rounded lip's top faces out over ~0.5 wall
+  if (e.reaches_axis) return EndKind::Base;
+  if (!e.level) return EndKind::Fracture;
+  if (e.end_face_span_mm > kWiderThanWall * wall_mm ||
+      (e.end_face_span_mm > kFootRing * wall_mm && e.near_face_span_mm > kRecessedUnderside * wall_mm)) {
+    return EndKind::Base;
+  }
+  return e.end_face_span_mm >= kLipTop * wall_mm ? EndKind::Lip : EndKind::Fracture;
+}
+
+// Orientation rule: the lip is at the top and the base at the bottom. Certain when the two ends
+// say so without contradiction: a lip against a break or a base, or a base against a break.
+// Otherwise (two breaks: a body sherd; or two ends of one kind) the wider end is taken as the
+// top — most vessels widen from the base upwards — and the orientation is marked uncertain.
+// has_rim is claimed only for a lip at the top, has_base only for a base at the bottom: a break
+// is never a rim.
 struct Orientation {
   bool flip = false;  // the rim is at the provisional -z end
   bool certain = false;
@@ -203,29 +261,34 @@ struct Orientation {
   bool has_base = false;
 };
 
-Orientation orient(const std::vector<CylPoint>& pts, double band_mm, double arc_deg) {
+Orientation orient(const std::vector<CylPoint>& pts, double wall_mm, double arc_middle) {
   double max_r = 0.0;
   for (const auto& p : pts) max_r = std::max(max_r, p.r);
-  const EndShape top = end_shape(pts, true, band_mm, arc_deg, max_r);
-  const EndShape bottom = end_shape(pts, false, band_mm, arc_deg, max_r);
-  constexpr double kLip = 0.7, kClearlyBetter = 0.15;
-  auto is_lip = [&](const EndShape& e) { return e.coverage_share >= kLip && !e.reaches_axis; };
+  const EndShape top_shape = end_shape(pts, true, max_r, arc_middle);
+  const EndShape bottom_shape = end_shape(pts, false, max_r, arc_middle);
+  const EndKind top = classify(top_shape, wall_mm), bottom = classify(bottom_shape, wall_mm);
+  auto mean_radius_near_end = [&](bool at_top) {
+    double end = at_top ? -std::numeric_limits<double>::infinity() : std::numeric_limits<double>::infinity();
+    for (const auto& p : pts) end = at_top ? std::max(end, p.h) : std::min(end, p.h);
+    double sum = 0.0;
+    int n = 0;
+    for (const auto& p : pts) {
+      if (std::abs(p.h - end) <= 5.0) sum += p.r, ++n;
+    }
+    return n ? sum / n : 0.0;
+  };
   Orientation o;
-  if (top.reaches_axis != bottom.reaches_axis) {
-    o.flip = top.reaches_axis;
+  if (top != bottom) {
+    // Up is where the lip is; without a lip, away from the base.
+    o.flip = bottom == EndKind::Lip || (top == EndKind::Base && bottom == EndKind::Fracture);
     o.certain = true;
-  } else if (is_lip(top) != is_lip(bottom)) {
-    o.flip = is_lip(bottom);
-    o.certain = true;
-  } else if (std::abs(top.coverage_share - bottom.coverage_share) > kClearlyBetter) {
-    o.flip = bottom.coverage_share > top.coverage_share;
   } else {
-    o.flip = bottom.mean_radius > top.mean_radius;
+    o.flip = mean_radius_near_end(false) > mean_radius_near_end(true);
   }
-  const EndShape& rim = o.flip ? bottom : top;
-  const EndShape& base = o.flip ? top : bottom;
-  o.has_rim = is_lip(rim);
-  o.has_base = base.reaches_axis || (base.coverage_share >= kLip && base.flat_underside);
+  const EndKind rim_end = o.flip ? bottom : top;
+  const EndKind base_end = o.flip ? top : bottom;
+  o.has_rim = rim_end == EndKind::Lip;
+  o.has_base = base_end == EndKind::Base;
   return o;
 }
 
@@ -268,18 +331,29 @@ double section_azimuth(const std::vector<CylPoint>& pts, double half_width_rad, 
   return chosen;
 }
 
-using Vec2 = Eigen::Vector2d;
-
 struct SectionPoint {
   Vec2 rz;
   Vec2 normal;  // unit, in the (r, z) half-plane
 };
 
+// The section slab around `azimuth`, without radial fracture faces (normals mostly along the
+// circumference, so little of them is left in the (r, z) half-plane).
+std::vector<SectionPoint> section_slab(const std::vector<CylPoint>& pts, double azimuth, double half_width) {
+  std::vector<SectionPoint> section;
+  for (const auto& p : pts) {
+    if (std::abs(wrap_angle(p.phi - azimuth)) > half_width) continue;
+    const Vec2 n(p.n_r, p.n_h);
+    if (n.norm() < 0.7) continue;
+    section.push_back({{p.r, p.h}, n.normalized()});
+  }
+  return section;
+}
+
 // Skin points have a partner on the opposite skin a wall thickness away, straight through the wall
 // along -normal. Lip and fracture faces look through the wall lengthwise: their partner (if any)
-// is far. Brute force: a section holds a few thousand points, and no library ray-casts into
-// unorganised points.
-std::vector<SectionPoint> keep_skin_points(const std::vector<SectionPoint>& section) {
+// is far. Returns each point's distance through the wall (infinity: no partner). Brute force: a
+// section holds a few thousand points, and no library ray-casts into unorganised points.
+std::vector<double> through_wall(const std::vector<SectionPoint>& section) {
   std::vector<double> through(section.size(), std::numeric_limits<double>::infinity());
   for (std::size_t i = 0; i < section.size(); ++i) {
     const auto& a = section[i];
@@ -291,13 +365,26 @@ std::vector<SectionPoint> keep_skin_points(const std::vector<SectionPoint>& sect
       if ((v + t * a.normal).norm() <= std::max(0.5, 0.1 * t)) through[i] = t;
     }
   }
+  return through;
+}
+
+// The typical wall thickness: the median finite distance through the wall; nullopt if none.
+std::optional<double> median_through(const std::vector<double>& through) {
   std::vector<double> finite;
   for (double t : through) {
     if (std::isfinite(t)) finite.push_back(t);
   }
-  if (finite.empty()) return {};
+  if (finite.empty()) return std::nullopt;
   std::nth_element(finite.begin(), finite.begin() + finite.size() / 2, finite.end());
-  const double limit = 2.0 * finite[finite.size() / 2] + 0.5;
+  return finite[finite.size() / 2];
+}
+
+// The points of the two skins: those with a partner within twice the typical wall thickness.
+std::vector<SectionPoint> keep_skin_points(const std::vector<SectionPoint>& section) {
+  const auto through = through_wall(section);
+  const auto wall = median_through(through);
+  if (!wall) return {};
+  const double limit = 2.0 * *wall + 0.5;
   std::vector<SectionPoint> kept;
   for (std::size_t i = 0; i < section.size(); ++i) {
     if (through[i] <= limit) kept.push_back(section[i]);
@@ -476,7 +563,15 @@ Analysis analyse(const Cloud& sherd, const axis::AxisEstimate& axis, const Param
     return angular_coverage(phis, median_radius(pts));
   };
   Coverage arc = sherd_arc();
-  const Orientation orientation = orient(pts, params.rim_band_mm, arc.degrees);
+  const double half_width = params.section_half_width_deg * kDegToRad;
+  // The wall thickness (orientation-free) sets the scale at which an end's face is a lip or a base.
+  const auto provisional_wall =
+      median_through(through_wall(section_slab(pts, section_azimuth(pts, half_width, arc.middle_rad), half_width)));
+  if (!provisional_wall) {
+    throw ProcessingError("profile: no two skins a wall apart in the section; the scan shows only one "
+                          "side of the sherd, scan both faces");
+  }
+  const Orientation orientation = orient(pts, *provisional_wall, arc.middle_rad);
   if (orientation.flip) {
     frame = frame_about(axis.point, -axis.direction);
     pts = cylindrical(sherd, frame);
@@ -491,7 +586,6 @@ Analysis analyse(const Cloud& sherd, const axis::AxisEstimate& axis, const Param
   result.has_base = orientation.has_base;
   result.arc_deg = arc.degrees;
 
-  const double half_width = params.section_half_width_deg * kDegToRad;
   const double azimuth = section_azimuth(pts, half_width, arc.middle_rad);
   result.profile.section_angle_rad = wrap_angle(azimuth - arc.middle_rad);
   const Vec3d section_x = std::cos(azimuth) * frame.x + std::sin(azimuth) * frame.y;
@@ -500,25 +594,18 @@ Analysis analyse(const Cloud& sherd, const axis::AxisEstimate& axis, const Param
   result.sherd_to_world.linear().col(2) = frame.z;
   result.sherd_to_world.translation() = frame.origin;
 
-  // The section slab, without radial fracture faces (normals mostly along the circumference, so
-  // little of them is left in the (r, z) half-plane).
-  std::vector<SectionPoint> section;
-  for (const auto& p : pts) {
-    if (std::abs(wrap_angle(p.phi - azimuth)) > half_width) continue;
-    const Vec2 n(p.n_r, p.n_h);
-    if (n.norm() < 0.7) continue;
-    section.push_back({{p.r, p.h}, n.normalized()});
-  }
+  const std::vector<SectionPoint> section = section_slab(pts, azimuth, half_width);
   std::vector<Vec2> outer_pts, inner_pts;
   for (const auto& sp : keep_skin_points(section)) {
     (is_outer(sp.normal) ? outer_pts : inner_pts).push_back(sp.rz);
   }
   result.profile.outer = skin_polyline(outer_pts);
   result.profile.inner = skin_polyline(inner_pts);
-  if (result.profile.outer.size() < 2) {
-    throw ProcessingError(fmt::format("profile: the section at azimuth {:.1f} deg shows no outer "
-                                      "skin ({} points in the slab); the scan misses this side",
-                                      azimuth / kDegToRad, section.size()));
+  if (result.profile.outer.size() < 2 || result.profile.inner.size() < 2) {
+    throw ProcessingError(fmt::format("profile: the section at azimuth {:.1f} deg shows no {} skin "
+                                      "({} points in the slab); the scan misses this side",
+                                      azimuth / kDegToRad, result.profile.outer.size() < 2 ? "outer" : "inner",
+                                      section.size()));
   }
 
   Measurements& m = result.measurements;
@@ -533,8 +620,18 @@ Analysis analyse(const Cloud& sherd, const axis::AxisEstimate& axis, const Param
   m.wall_thickness_mm = wall_thickness(outer, result.profile.inner);
 
   if (result.has_rim) {
-    const auto rim = std::max_element(outer.begin(), outer.end(),
-                                      [](const auto& a, const auto& b) { return a[1] < b[1]; });
+    // The rim is where the outer wall meets the lip: the widest outer-skin point within
+    // rim_band_mm below the highest point of the section (the lip's apex, which the skin filter
+    // leaves out of both skins).
+    double top = -std::numeric_limits<double>::infinity();
+    for (const auto& p : section) top = std::max(top, p.rz.y());
+    auto rim = outer.end();
+    for (auto it = outer.begin(); it != outer.end(); ++it) {
+      if ((*it)[1] >= top - params.rim_band_mm && (rim == outer.end() || (*it)[0] > (*rim)[0])) rim = it;
+    }
+    if (rim == outer.end()) {
+      rim = std::max_element(outer.begin(), outer.end(), [](const auto& a, const auto& b) { return a[1] < b[1]; });
+    }
     m.rim_diameter_mm = 2.0 * (*rim)[0];
     std::vector<double> rim_phi;
     for (const auto& p : pts) {

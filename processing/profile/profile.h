@@ -25,7 +25,10 @@ struct WallThickness {
 };
 
 struct Measurements {
-  std::optional<double> rim_diameter_mm;  // outer diameter at the highest profile point
+  // Twice the largest outer-skin radius within Params::rim_band_mm below the highest profile
+  // point: the outer diameter where the outer wall meets the lip (the simulator's truth, and what
+  // a rim chart reads). Only for a sherd whose top end is a lip.
+  std::optional<double> rim_diameter_mm;
   std::optional<double> base_diameter_mm;
   double max_diameter_mm = 0.0;
   double height_mm = 0.0;  // preserved height along the axis
@@ -38,8 +41,8 @@ struct Measurements {
 struct Analysis {
   axis::AxisEstimate axis;  // direction now points from base towards rim
   bool rim_up_certain = false;
-  bool has_rim = false;
-  bool has_base = false;
+  bool has_rim = false;   // the top end is a lip (never claimed for a break)
+  bool has_base = false;  // the bottom end closes towards the axis or is a level underside / foot
   // Sherd frame → world: z along the axis (base → rim), origin = axis.point, x towards the section
   // half-plane.
   Pose sherd_to_world = Pose::Identity();
@@ -50,7 +53,7 @@ struct Analysis {
 
 struct Params {
   double section_half_width_deg = 2.0;  // slab of points around the section half-plane
-  double rim_band_mm = 2.0;             // points this close to the rim height count as rim
+  double rim_band_mm = 2.0;  // points this close below the rim height count as rim
 };
 
 // Orients the axis (rim up), extracts the profile and measures. `axis.found` must be true.

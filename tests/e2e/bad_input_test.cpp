@@ -85,35 +85,53 @@ TEST(BadInput, CorruptFileIsNamedAndOtherFilesStillProcessed) {
   EXPECT_NE(result.err.find("broken.ply"), std::string::npos) << result.err;
 }
 
-// A sphere (every line through its centre is an axis) and a flat slab (a stone) are no pottery:
-// each gets its mesh and views, and a sherd.json saying why there is no axis.
+// Points and outward normals on a grid of (u, v) through `surface`.
+template <class Surface>
+Mesh sampled(int nu, int nv, Surface surface) {
+  Mesh mesh;
+  for (int i = 0; i < nu; ++i) {
+    for (int j = 0; j < nv; ++j) {
+      const auto [p, n] = surface((i + 0.5) / nu, (j + 0.5) / nv);
+      mesh.vertices.points.push_back(p);
+      mesh.vertices.normals.push_back(n);
+      mesh.vertices.colours.push_back({180, 120, 90});
+    }
+  }
+  return mesh;
+}
+
+// A sphere (every line through its centre is an axis) and a flat stone (a slab: no curvature)
+// are no pottery: each gets its mesh and views, and a sherd.json saying why there is no axis.
 TEST(BadInput, NonPotteryObjectsGetNoAxisWithAReason) {
   TempDir dir;
   const auto config = write_config(dir, {});
-  Mesh sphere;
-  const int rings = 90, segments = 180;
-  for (int i = 1; i < rings; ++i) {
-    for (int j = 0; j < segments; ++j) {
-      const double theta = M_PI * i / rings, phi = 2 * M_PI * j / segments;
-      const Vec3f n(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta));
-      sphere.vertices.points.push_back(30.0f * n);
-      sphere.vertices.normals.push_back(n);
-      sphere.vertices.colours.push_back({180, 120, 90});
-    }
+  const auto sphere = sampled(90, 180, [](double u, double v) {
+    const double theta = M_PI * u, phi = 2 * M_PI * v;
+    const Vec3f n(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta));
+    return std::pair{Vec3f(30.0f * n), n};
+  });
+  // Two faces of a 60 × 40 × 8 mm slab.
+  auto slab = sampled(120, 80, [](double u, double v) {
+    return std::pair{Vec3f(60 * u, 40 * v, 8), Vec3f(0, 0, 1)};
+  });
+  slab.vertices.append(sampled(120, 80, [](double u, double v) {
+    return std::pair{Vec3f(60 * u, 40 * v, 0), Vec3f(0, 0, -1)};
+  }).vertices);
+
+  for (const auto& [name, mesh] : {std::pair<const char*, const Mesh*>{"sphere", &sphere}, {"slab", &slab}}) {
+    const auto file = dir.path() / (std::string(name) + ".ply");
+    io::write_ply(file, *mesh);
+    const auto result = run({binary("sherdctl").string(), "--config", config.string(), "process", file.string(),
+                             "--out", (dir.path() / "out").string()});
+    ASSERT_EQ(result.exit_code, 0) << name << ": " << result.err;
+    ASSERT_FALSE(result.out.empty()) << name;
+    const auto plate = std::filesystem::path(result.out.substr(0, result.out.find('\n')));
+    EXPECT_TRUE(std::filesystem::exists(plate)) << name;
+    std::ifstream in(plate.parent_path() / "sherd.json");
+    const auto doc = nlohmann::json::parse(in);
+    EXPECT_FALSE(doc["axis"]["found"].get<bool>()) << name;
+    EXPECT_TRUE(doc["axis"]["reason"].is_string() && !doc["axis"]["reason"].get<std::string>().empty()) << name;
   }
-  const auto file = dir.path() / "sphere.ply";
-  io::write_ply(file, sphere);
-  const auto out = dir.path() / "out";
-  const auto result = run({binary("sherdctl").string(), "--config", config.string(), "process", file.string(),
-                           "--out", out.string()});
-  ASSERT_EQ(result.exit_code, 0) << result.err;
-  ASSERT_FALSE(result.out.empty());
-  const auto plate = std::filesystem::path(result.out.substr(0, result.out.find('\n')));
-  EXPECT_TRUE(std::filesystem::exists(plate));
-  std::ifstream in(plate.parent_path() / "sherd.json");
-  const auto doc = nlohmann::json::parse(in);
-  EXPECT_FALSE(doc["axis"]["found"].get<bool>());
-  EXPECT_TRUE(doc["axis"]["reason"].is_string() && !doc["axis"]["reason"].get<std::string>().empty());
 }
 
 }  // namespace

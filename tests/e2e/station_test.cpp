@@ -13,6 +13,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <csignal>
 #include <cmath>
 #include <fstream>
 #include <set>
@@ -146,7 +147,11 @@ TEST(Station, ScanGivesEveryTruthSherdAPlateAndMeasurementsNearTruth) {
   EXPECT_EQ(daemon.terminate(), 0) << daemon.log();
 }
 
-TEST(Station, KillDuringAcquisitionLosesNoViewAndTheScanFinishesAfterRestart) {
+// A power cut (SIGKILL) and an orderly stop (SIGTERM) in the middle of acquisition: both lose no
+// view, and the scan finishes when sherdd starts again.
+class Interrupted : public ::testing::TestWithParam<int> {};
+
+TEST_P(Interrupted, MidAcquisitionLosesNoViewAndTheScanFinishesAfterRestart) {
   TestStation station(std::map<std::string, std::string>{{"turntable.time_scale", "1.0"}});
   auto daemon = std::make_unique<Daemon>(station.config_file, station.data);
   daemon->start();
@@ -165,7 +170,11 @@ TEST(Station, KillDuringAcquisitionLosesNoViewAndTheScanFinishesAfterRestart) {
     }
     ASSERT_GE(store.views(scan_id).size(), 3u);
   }
-  daemon->kill9();
+  if (GetParam() == SIGKILL) {
+    daemon->kill9();
+  } else {
+    EXPECT_EQ(daemon->terminate(), 0) << daemon->log();
+  }
   // The client notices: the stream ends without a "finished" event.
   while (auto event = socket.receive()) EXPECT_NE((*event)["event"], "finished");
 
@@ -189,6 +198,9 @@ TEST(Station, KillDuringAcquisitionLosesNoViewAndTheScanFinishesAfterRestart) {
   EXPECT_FALSE(store.sherds(scan_id).empty());
   EXPECT_EQ(daemon->terminate(), 0);
 }
+
+INSTANTIATE_TEST_SUITE_P(Station, Interrupted, ::testing::Values(SIGKILL, SIGTERM),
+                         [](const auto& info) { return info.param == SIGKILL ? "Sigkill" : "Sigterm"; });
 
 }  // namespace
 }  // namespace sherd::testing

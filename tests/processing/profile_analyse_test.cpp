@@ -113,6 +113,51 @@ TEST(ProfileAnalyse, ConeRimSherdAfterAxisEstimation) {
   EXPECT_NEAR(result.measurements.wall_thickness_mm.mean, 5.0, 0.2);
 }
 
+TEST(ProfileAnalyse, BaseSherdWithFlatUndersideIsUprightWithoutRim) {
+  // A base sherd broken off short of the axis: a flat underside from r = 25 mm to r = 45 mm
+  // (z = 0), then a wall rising at 60° to an irregular break. The underside is level all round
+  // and wider than the wall: a base, at the bottom; the top is a break, so no rim is claimed.
+  WallOfRevolution w;
+  w.outer = [](double s) {
+    const double l = s * 60.0;
+    return l <= 20.0 ? Vec2(25.0 + l, 0.0) : Vec2(45.0 + (l - 20.0) * 0.5, (l - 20.0) * std::sqrt(0.75));
+  };
+  w.flat_lip = false;
+  w.break_amplitude_mm = 6.0;
+  w.phi_end_rad = M_PI / 2;
+  w.thickness_mm = 6.0;
+  Cloud cloud = testing::sample_wall(w);
+  const Pose pose = testing::arbitrary_pose(-28.0);
+  cloud.transform(pose);
+  const Vec3d up = pose.linear() * Vec3d::UnitZ();
+  for (double sign : {1.0, -1.0}) {  // whichever way the axis comes in
+    const auto result = profile::analyse(cloud, true_axis(pose, sign));
+    EXPECT_GT(result.axis.direction.dot(up), 0.9999) << sign;
+    EXPECT_TRUE(result.rim_up_certain) << sign;
+    EXPECT_TRUE(result.has_base) << sign;
+    EXPECT_FALSE(result.has_rim) << sign;
+    EXPECT_FALSE(result.measurements.rim_diameter_mm.has_value()) << sign;
+    EXPECT_FALSE(result.measurements.rim_percent.has_value()) << sign;
+  }
+}
+
+TEST(ProfileAnalyse, BodySherdBrokenAtBothEndsIsNotSureWhichWayUp) {
+  // A cylinder wall broken at both ends: nothing tells up from down, no rim and no base.
+  WallOfRevolution w;
+  w.outer = [](double s) { return Vec2(70.0, 50.0 * s); };
+  w.flat_lip = false;
+  w.phi_end_rad = M_PI / 3;
+  Cloud cloud = testing::sample_wall(w);
+  const Pose pose = testing::arbitrary_pose();
+  cloud.transform(pose);
+  const auto result = profile::analyse(cloud, true_axis(pose, 1.0));
+  EXPECT_FALSE(result.rim_up_certain);
+  EXPECT_FALSE(result.has_rim);
+  EXPECT_FALSE(result.has_base);
+  EXPECT_FALSE(result.measurements.rim_diameter_mm.has_value());
+  EXPECT_NEAR(result.measurements.wall_thickness_mm.mean, 6.0, 0.15);
+}
+
 TEST(ProfileAnalyse, CompleteCupCapacity) {
   // A cup: flat base (outer underside r ≤ 32 at z = 0), a rounded foot (radius 8), a straight
   // wall at r = 40 up to a flat lip at z = 70; 6 mm thick. Outer profile by arc length.
