@@ -199,7 +199,7 @@ SherdOutcome Pipeline::analyse_sherd(const std::string& scan_id, const segmentat
     try {
       analysis = profile::analyse(part.mesh.vertices, axis);
     } catch (const ProcessingError& e) {
-      out.axis_found = false;
+      // The axis stands; without a section nothing can be oriented or measured along it.
       out.reason = fmt::format("axis found but no profile: {}", e.what());
       spdlog::warn("sherd {}: {}", part.id, out.reason);
     }
@@ -224,7 +224,7 @@ SherdOutcome Pipeline::analyse_sherd(const std::string& scan_id, const segmentat
                {{"width_px", files.width_px}, {"height_px", files.height_px}, {"dpi", config_.render.dpi}});
 
   auto doc = sherd_document(scan_id, part.id, part.mesh, axis, analysis ? &*analysis : nullptr);
-  if (!out.axis_found) doc["axis"]["reason"] = out.reason;
+  if (axis.found && !analysis) doc["profile_error"] = out.reason;
   write_json_file(out.dir / "sherd.json", doc);
 
   store_.add_sherd({scan_id, part.id, static_cast<std::int64_t>(part.mesh.vertices.size()), doc});

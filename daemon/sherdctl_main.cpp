@@ -59,8 +59,10 @@ int follow_events(JsonLineSocket& socket, const std::string& scan_id, bool as_js
     } else if (kind == "stage" && event->contains("ms")) {
       std::cerr << fmt::format("[{}] {:.0f} ms\n", event->value("stage", ""), event->value("ms", 0.0));
     } else if (kind == "sherd") {
-      std::cerr << fmt::format("[sherd {}] {}\n", event->value("sherd_id", ""),
-                               event->value("axis_found", false) ? "axis found" : "no axis: " + event->value("reason", ""));
+      const std::string reason = event->value("reason", "");
+      std::cerr << fmt::format("[sherd {}] {}{}\n", event->value("sherd_id", ""),
+                               event->value("axis_found", false) ? "axis found" : "no axis",
+                               reason.empty() ? "" : ": " + reason);
     } else if (kind == "finished") {
       if (event->value("state", "") != "done") {
         std::cerr << fmt::format("sherdctl: scan {} failed: {}\n", scan_id, event->value("reason", ""));

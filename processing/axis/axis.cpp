@@ -424,8 +424,10 @@ AxisEstimate estimate_axis(const Cloud& sherd, const Params& params) {
                                            100.0 * estimate.inlier_share,
                                            100.0 * params.min_inlier_share));
   }
+  // Normals that all meet in one point (a sphere) fit every line through it. On clean data both
+  // residuals are near zero and their ratio is noise, hence the absolute floor.
   const double sphere_rms = common_point_rms(lines, scored.inliers);
-  if (sphere_rms < params.sphere_rms_ratio * scored.rms) {
+  if (sphere_rms < std::max(params.sphere_rms_ratio * scored.rms, params.inlier_distance_mm)) {
     return not_found(estimate, fmt::format("not rotational-unique: the normals meet in one point "
                                            "(RMS {:.2f} mm vs {:.2f} mm to the axis), sphere-like, "
                                            "every line through it fits",

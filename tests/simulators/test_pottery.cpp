@@ -250,7 +250,9 @@ TEST_P(SherdScenes, TrayIsMostlyRimSherdsWithBasesAndBodies) {
         if (!truth.has_rim && !truth.has_base) {
           // A body sherd keeps neither the base angle nor the base: it starts above the floor.
           EXPECT_GT(truth.preserved_z_mm[0], 0.0) << where;
-          if (truth.family == "amphora") EXPECT_GE(measured.arc_deg, kMinBodyArcDeg) << where;
+          if (truth.family == "amphora") {
+            EXPECT_GE(measured.arc_deg, kMinBodyArcDeg) << where;
+          }
         }
       }
       EXPECT_GE(rims, 1) << "k=" << k << " seed " << seed;
@@ -259,7 +261,9 @@ TEST_P(SherdScenes, TrayIsMostlyRimSherdsWithBasesAndBodies) {
         EXPECT_GE(rims, 2) << "k=" << k << " seed " << seed;
         EXPECT_GE(bases, 1) << "k=" << k << " seed " << seed;
       }
-      if (k >= 4) EXPECT_GE(bodies, 1) << "k=" << k << " seed " << seed;
+      if (k >= 4) {
+        EXPECT_GE(bodies, 1) << "k=" << k << " seed " << seed;
+      }
     }
     // The order is shuffled: from two sherds on, no place is always or never a rim.
     if (k >= 2) {
