@@ -107,6 +107,7 @@ ScanOutcome Pipeline::process_views(const std::string& scan_id, const std::vecto
     auto figures = view_figures(r);
     store_.set_view_registration(scan_id, views[i].index, figures);
     for (const auto& flag : r.flags) {
+      if (flag == "reference") continue;  // the view that anchors the frame: nothing wrong with it
       ++flagged;
       spdlog::warn("view {}: {} (kept at the turntable prior: not merged blindly)", views[i].index, flag);
     }
