@@ -292,9 +292,12 @@ Orientation orient(const std::vector<CylPoint>& pts, double wall_mm, double arc_
   return o;
 }
 
-// The azimuth where the sherd's axial extent is largest (the best-preserved profile); among
-// nearly equal candidates the one nearest the middle of the arc, away from the side breaks.
-double section_azimuth(const std::vector<CylPoint>& pts, double half_width_rad, double arc_middle) {
+// Candidate section azimuths, best first: where the sherd's axial extent is largest (the
+// best-preserved profile); among nearly equal extents the one nearest the middle of the arc, away
+// from the side breaks. Candidates lie at least two slab widths apart, so a later one is a
+// different section, not the same slab again.
+std::vector<double> section_azimuths(const std::vector<CylPoint>& pts, double half_width_rad,
+                                     double arc_middle) {
   const int bins = 720;
   const double bin = kTwoPi / bins;
   std::vector<double> lo(bins, std::numeric_limits<double>::infinity());
@@ -305,8 +308,10 @@ double section_azimuth(const std::vector<CylPoint>& pts, double half_width_rad, 
     hi[b] = std::max(hi[b], p.h);
   }
   const int reach = std::max(1, static_cast<int>(half_width_rad / bin));
-  std::vector<double> extent(bins, -1.0);
-  double best = -1.0;
+  struct Candidate {
+    double extent, offset, azimuth;
+  };
+  std::vector<Candidate> candidates;
   for (int b = 0; b < bins; ++b) {
     double l = std::numeric_limits<double>::infinity(), h = -l;
     for (int k = -reach; k <= reach; ++k) {
@@ -314,20 +319,25 @@ double section_azimuth(const std::vector<CylPoint>& pts, double half_width_rad, 
       l = std::min(l, lo[j]);
       h = std::max(h, hi[j]);
     }
-    if (h >= l) extent[b] = h - l;
-    best = std::max(best, extent[b]);
-  }
-  constexpr double kTieMm = 0.25;
-  double chosen = arc_middle, chosen_offset = std::numeric_limits<double>::infinity();
-  for (int b = 0; b < bins; ++b) {
-    if (extent[b] < best - kTieMm) continue;
+    if (h < l) continue;
     const double centre = (b + 0.5) * bin - M_PI;
-    const double offset = std::abs(wrap_angle(centre - arc_middle));
-    if (offset < chosen_offset) {
-      chosen_offset = offset;
-      chosen = centre;
-    }
+    candidates.push_back({h - l, std::abs(wrap_angle(centre - arc_middle)), centre});
   }
+  // Extents within kTieMm of each other count as equal: then the one nearer the middle wins.
+  constexpr double kTieMm = 0.25;
+  std::sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) {
+    const double ka = std::floor(a.extent / kTieMm), kb = std::floor(b.extent / kTieMm);
+    return ka != kb ? ka > kb : a.offset < b.offset;
+  });
+  std::vector<double> chosen;
+  for (const auto& c : candidates) {
+    const bool apart = std::all_of(chosen.begin(), chosen.end(), [&](double a) {
+      return std::abs(wrap_angle(a - c.azimuth)) >= 2.0 * half_width_rad;
+    });
+    if (apart) chosen.push_back(c.azimuth);
+    if (chosen.size() == 8) break;
+  }
+  if (chosen.empty()) chosen.push_back(arc_middle);
   return chosen;
 }
 
@@ -566,7 +576,7 @@ Analysis analyse(const Cloud& sherd, const axis::AxisEstimate& axis, const Param
   const double half_width = params.section_half_width_deg * kDegToRad;
   // The wall thickness (orientation-free) sets the scale at which an end's face is a lip or a base.
   const auto provisional_wall =
-      median_through(through_wall(section_slab(pts, section_azimuth(pts, half_width, arc.middle_rad), half_width)));
+      median_through(through_wall(section_slab(pts, section_azimuths(pts, half_width, arc.middle_rad)[0], half_width)));
   if (!provisional_wall) {
     throw ProcessingError("profile: no two skins a wall apart in the section; the scan shows only one "
                           "side of the sherd, scan both faces");
@@ -586,26 +596,39 @@ Analysis analyse(const Cloud& sherd, const axis::AxisEstimate& axis, const Param
   result.has_base = orientation.has_base;
   result.arc_deg = arc.degrees;
 
-  const double azimuth = section_azimuth(pts, half_width, arc.middle_rad);
-  result.profile.section_angle_rad = wrap_angle(azimuth - arc.middle_rad);
-  const Vec3d section_x = std::cos(azimuth) * frame.x + std::sin(azimuth) * frame.y;
-  result.sherd_to_world.linear().col(0) = section_x;
-  result.sherd_to_world.linear().col(1) = frame.z.cross(section_x);
-  result.sherd_to_world.linear().col(2) = frame.z;
-  result.sherd_to_world.translation() = frame.origin;
-
-  const std::vector<SectionPoint> section = section_slab(pts, azimuth, half_width);
-  std::vector<Vec2> outer_pts, inner_pts;
-  for (const auto& sp : keep_skin_points(section)) {
-    (is_outer(sp.normal) ? outer_pts : inner_pts).push_back(sp.rz);
+  // The best-preserved section first; where the scan misses a skin there (a shadowed strip), the
+  // next candidate section.
+  std::string missing;
+  double section_top = -std::numeric_limits<double>::infinity();  // highest point of the section
+  for (const double azimuth : section_azimuths(pts, half_width, arc.middle_rad)) {
+    const std::vector<SectionPoint> section = section_slab(pts, azimuth, half_width);
+    std::vector<Vec2> outer_pts, inner_pts;
+    for (const auto& sp : keep_skin_points(section)) {
+      (is_outer(sp.normal) ? outer_pts : inner_pts).push_back(sp.rz);
+    }
+    result.profile.outer = skin_polyline(outer_pts);
+    result.profile.inner = skin_polyline(inner_pts);
+    if (result.profile.outer.size() >= 2 && result.profile.inner.size() >= 2) {
+      result.profile.section_angle_rad = wrap_angle(azimuth - arc.middle_rad);
+      const Vec3d section_x = std::cos(azimuth) * frame.x + std::sin(azimuth) * frame.y;
+      result.sherd_to_world.linear().col(0) = section_x;
+      result.sherd_to_world.linear().col(1) = frame.z.cross(section_x);
+      result.sherd_to_world.linear().col(2) = frame.z;
+      result.sherd_to_world.translation() = frame.origin;
+      for (const auto& p : section) section_top = std::max(section_top, p.rz.y());
+      missing.clear();
+      break;
+    }
+    if (missing.empty()) {
+      missing = fmt::format("the best section (azimuth {:.1f} deg, {} points) shows no {} skin",
+                            azimuth / kDegToRad, section.size(),
+                            result.profile.outer.size() < 2 ? "outer" : "inner");
+    }
   }
-  result.profile.outer = skin_polyline(outer_pts);
-  result.profile.inner = skin_polyline(inner_pts);
-  if (result.profile.outer.size() < 2 || result.profile.inner.size() < 2) {
-    throw ProcessingError(fmt::format("profile: the section at azimuth {:.1f} deg shows no {} skin "
-                                      "({} points in the slab); the scan misses this side",
-                                      azimuth / kDegToRad, result.profile.outer.size() < 2 ? "outer" : "inner",
-                                      section.size()));
+  if (!missing.empty()) {
+    throw ProcessingError(fmt::format("profile: {}, nor does any other candidate section; the scan misses "
+                                      "one side of the sherd: scan both faces",
+                                      missing));
   }
 
   Measurements& m = result.measurements;
@@ -623,8 +646,7 @@ Analysis analyse(const Cloud& sherd, const axis::AxisEstimate& axis, const Param
     // The rim is where the outer wall meets the lip: the widest outer-skin point within
     // rim_band_mm below the highest point of the section (the lip's apex, which the skin filter
     // leaves out of both skins).
-    double top = -std::numeric_limits<double>::infinity();
-    for (const auto& p : section) top = std::max(top, p.rz.y());
+    const double top = section_top;
     auto rim = outer.end();
     for (auto it = outer.begin(); it != outer.end(); ++it) {
       if ((*it)[1] >= top - params.rim_band_mm && (rim == outer.end() || (*it)[0] > (*rim)[0])) rim = it;
