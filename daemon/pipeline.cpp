@@ -108,6 +108,12 @@ ScanOutcome Pipeline::process_views(const std::string& scan_id, const std::vecto
     store_.set_view_registration(scan_id, views[i].index, figures);
     for (const auto& flag : r.flags) {
       if (flag == "reference") continue;  // the view that anchors the frame: nothing wrong with it
+      if (flag.rfind("degenerate:", 0) == 0) {
+        // Normal for a pot: the geometry cannot see this direction, the turntable prior holds it.
+        spdlog::info("view {}: {} — not constrained by the geometry, kept at the turntable prior",
+                     views[i].index, flag.substr(11));
+        continue;
+      }
       ++flagged;
       spdlog::warn("view {}: {} (kept at the turntable prior: not merged blindly)", views[i].index, flag);
     }

@@ -8,11 +8,13 @@
 #include <pcl/filters/voxel_grid.h>
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
-#include <pcl/registration/correspondence_rejection_surface_normal.h>
-#include <pcl/registration/correspondence_rejection_trimmed.h>
-#include <pcl/registration/icp.h>
 #include <pcl/search/kdtree.h>
 
+#include <Eigen/Eigenvalues>
+#include <Eigen/QR>
+
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <numbers>
 
@@ -42,10 +44,12 @@ void check_input(const std::vector<ViewInput>& views, const Params& params) {
   if (!(params.voxel_mm > 0) || !(params.max_correspondence_mm > 0) || params.max_iterations < 1 ||
       !(params.max_correction_deg > 0) || !(params.max_correction_mm > 0) ||
       !(params.mesh_max_edge_mm > 0) || !(params.min_overlap >= 0 && params.min_overlap <= 1) ||
-      params.icp_max_points < 1) {
+      params.icp_max_points < 1 ||
+      !(params.degenerate_eigenvalue_ratio >= 0 && params.degenerate_eigenvalue_ratio < 1)) {
     throw InputError(
         "registration: parameters out of range (voxel, distances, limits and iterations must be "
-        "positive, min_overlap in [0, 1]); fix the registration parameters");
+        "positive, min_overlap in [0, 1], degenerate_eigenvalue_ratio in [0, 1)); fix the "
+        "registration parameters");
   }
   for (std::size_t i = 0; i < views.size(); ++i) {
     const OrganisedView* view = views[i].view;
@@ -149,59 +153,166 @@ CloudT::Ptr transformed(const CloudT& cloud, const Eigen::Isometry3d& pose) {
   return out;
 }
 
+using Vector6d = Eigen::Matrix<double, 6, 1>;
+using Matrix6d = Eigen::Matrix<double, 6, 6>;
+
+struct Pair {
+  int source = 0, target = 0;
+  float distance_sq = 0.f;
+};
+
+// Nearest-neighbour pairs of `source` in the tree's cloud within `max_distance_mm` and with
+// compatible normals.
+std::vector<Pair> nearest_pairs(const CloudT& source, const pcl::search::KdTree<PointT>& target_tree,
+                                double max_distance_mm) {
+  std::vector<Pair> pairs;
+  const CloudT& target = *target_tree.getInputCloud();
+  const double max_sq = max_distance_mm * max_distance_mm;
+  std::vector<int> index(1);
+  std::vector<float> distance_sq(1);
+  for (std::size_t i = 0; i < source.size(); ++i) {
+    const auto& p = source[i];
+    if (target_tree.nearestKSearch(p, 1, index, distance_sq) < 1 || distance_sq[0] > max_sq) {
+      continue;
+    }
+    if (p.getNormalVector3fMap().dot(target[index[0]].getNormalVector3fMap()) < kMinNormalCosine) {
+      continue;
+    }
+    pairs.push_back({static_cast<int>(i), index[0], distance_sq[0]});
+  }
+  return pairs;
+}
+
+// Distance of a source point from the plane of its target point.
+double along_target_normal(const PointT& source, const PointT& target) {
+  return (source.getVector3fMap() - target.getVector3fMap())
+      .cast<double>()
+      .dot(target.getNormalVector3fMap().cast<double>());
+}
+
 struct Fit {
   std::size_t correspondences = 0;
   double rms_mm = 0.0;  // point-to-plane, over the correspondences
   double overlap = 0.0;
 };
 
-// Nearest-neighbour correspondences of `source` in the tree's cloud within `max_distance_mm`
-// and with compatible normals.
 Fit measure_fit(const CloudT& source, const pcl::search::KdTree<PointT>& target_tree,
                 double max_distance_mm) {
   Fit fit;
   if (source.empty()) return fit;
   const CloudT& target = *target_tree.getInputCloud();
-  const double max_sq = max_distance_mm * max_distance_mm;
-  std::vector<int> index(1);
-  std::vector<float> distance_sq(1);
   double sum_sq = 0.0;
-  for (const auto& p : source) {
-    if (target_tree.nearestKSearch(p, 1, index, distance_sq) < 1 || distance_sq[0] > max_sq) {
-      continue;
-    }
-    const auto& q = target[index[0]];
-    if (p.getNormalVector3fMap().dot(q.getNormalVector3fMap()) < kMinNormalCosine) continue;
-    const double along_normal = (p.getVector3fMap() - q.getVector3fMap())
-                                    .cast<double>()
-                                    .dot(q.getNormalVector3fMap().cast<double>());
-    sum_sq += along_normal * along_normal;
-    ++fit.correspondences;
+  const std::vector<Pair> pairs = nearest_pairs(source, target_tree, max_distance_mm);
+  for (const Pair& pair : pairs) {
+    const double d = along_target_normal(source[pair.source], target[pair.target]);
+    sum_sq += d * d;
   }
-  if (fit.correspondences > 0) fit.rms_mm = std::sqrt(sum_sq / fit.correspondences);
-  fit.overlap = static_cast<double>(fit.correspondences) / source.size();
+  fit.correspondences = pairs.size();
+  if (!pairs.empty()) fit.rms_mm = std::sqrt(sum_sq / pairs.size());
+  fit.overlap = static_cast<double>(pairs.size()) / source.size();
   return fit;
 }
 
-// PCL's point-to-plane ICP (linearised least squares on the target's normals), in double
-// precision, exposing how many iterations it ran.
-class PointToPlaneIcp : public pcl::IterativeClosestPointWithNormals<PointT, PointT, double> {
- public:
-  int iterations() const { return nr_iterations_; }
+const std::array<const char*, 6> kTwistAxisNames = {"rot_x",   "rot_y",   "rot_z",
+                                                    "trans_x", "trans_y", "trans_z"};
+
+// Names the degenerate subspace (columns of `basis`, orthonormal) by world axes: greedily the
+// axis that lies most in it, then the next one after removing what is already named (Gram-Schmidt)
+// — eigenvectors of equal (near-zero) eigenvalues are arbitrary mixtures, the axes are not.
+std::vector<DegenerateDirection> named_directions(const Eigen::Matrix<double, 6, Eigen::Dynamic>& basis,
+                                                  const Matrix6d& jtj, double largest_eigenvalue) {
+  std::vector<DegenerateDirection> named;
+  std::vector<Vector6d> twists;
+  std::array<bool, 6> used{};
+  for (Eigen::Index k = 0; k < basis.cols(); ++k) {
+    int best_axis = -1;
+    Vector6d best = Vector6d::Zero();
+    for (int axis = 0; axis < 6; ++axis) {
+      if (used[axis]) continue;
+      Vector6d v = basis * basis.transpose() * Vector6d::Unit(axis);
+      for (const Vector6d& twist : twists) v -= twist.dot(v) * twist;
+      if (best_axis < 0 || v.norm() > best.norm()) {
+        best_axis = axis;
+        best = v;
+      }
+    }
+    used[best_axis] = true;
+    DegenerateDirection direction;
+    direction.name = kTwistAxisNames[best_axis];
+    twists.push_back(best.normalized());
+    Vector6d::Map(direction.twist.data()) = twists.back();
+    direction.eigenvalue_ratio = twists.back().dot(jtj * twists.back()) / largest_eigenvalue;
+    named.push_back(direction);
+  }
+  return named;
+}
+
+struct Step {
+  Vector6d twist = Vector6d::Zero();  // (rotation × scale, translation)
+  std::vector<DegenerateDirection> degenerate;
 };
+
+// The Gauss-Newton step of JᵀJ x = −Jᵀr, with degenerate directions found from the eigenvalues.
+// With the handling on, the step is solved under the constraint that it does not move the view
+// in what names each degenerate direction: for a "rot_*" one, the rotation about that
+// direction's rotation axis; for a "trans_*" one, the translation along it. The view keeps the
+// prior there exactly, and the constraint is metric-free: constraining the whole eigenvector
+// instead (truncating the eigen-solution, Zhang, Kaess & Singh, ICRA 2016) keeps a blend of
+// rotation and translation that depends on the scaling, so part of a prior's translation error
+// would be turned into a rotation about the pot's axis. A prior term would need a weight to tune
+// and still let noise pull the view by an amount that weight sets.
+Step constrained_step(const Matrix6d& jtj, const Vector6d& jtr, const Params& params) {
+  const Eigen::SelfAdjointEigenSolver<Matrix6d> eigen(jtj);
+  const double largest = eigen.eigenvalues()(5);
+  Step step;
+  if (!(largest > 0)) return step;
+  Eigen::Matrix<double, 6, Eigen::Dynamic> degenerate(6, 0);
+  for (int i = 0; i < 6; ++i) {
+    if (eigen.eigenvalues()(i) > params.degenerate_eigenvalue_ratio * largest) continue;
+    degenerate.conservativeResize(Eigen::NoChange, degenerate.cols() + 1);
+    degenerate.rightCols<1>() = eigen.eigenvectors().col(i);
+  }
+  step.degenerate = named_directions(degenerate, jtj, largest);
+
+  Eigen::Matrix<double, 6, Eigen::Dynamic> held(6, 0);  // the step must be orthogonal to these
+  if (params.keep_prior_in_degenerate_directions) {
+    for (const auto& direction : step.degenerate) {
+      Vector6d part = Vector6d::Map(direction.twist.data());
+      (direction.name.starts_with("rot") ? part.tail<3>() : part.head<3>()).setZero();
+      held.conservativeResize(Eigen::NoChange, held.cols() + 1);
+      held.rightCols<1>() = part.normalized();
+    }
+  }
+  // Solved in a basis of the directions left free (null-space method); the complete orthogonal
+  // decomposition gives the least-norm step should the free system still be singular.
+  Eigen::Matrix<double, 6, Eigen::Dynamic> free = Matrix6d::Identity();
+  if (held.cols() > 0) {
+    const Matrix6d q = Eigen::HouseholderQR<Eigen::Matrix<double, 6, Eigen::Dynamic>>(held)
+                           .householderQ();
+    free = q.rightCols(6 - held.cols());
+  }
+  const Eigen::MatrixXd reduced = free.transpose() * jtj * free;
+  step.twist = free * Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(reduced).solve(
+                          -(free.transpose() * jtr));
+  return step;
+}
 
 struct Refinement {
   Eigen::Isometry3d correction = Eigen::Isometry3d::Identity();  // in the clouds' frame
   int iterations = 0;
   bool converged = false;
+  std::vector<DegenerateDirection> degenerate;  // of the last iteration
 };
 
-// Coarse then fine: the first pass accepts pairs as far apart as a plausible prior error
-// (so a prior off by up to max_correction_mm still finds its surface), the second tightens to
+// Point-to-plane ICP on `source` (centred on its centroid, RMS radius `scale_mm`), our own
+// Gauss-Newton loop rather than PCL's IterativeClosestPointWithNormals: the degeneracy handling
+// must act on every step's normal equations, which PCL's transformation estimators do not
+// expose, and projecting only PCL's final result would come after ICP has already slid.
+// Coarse then fine: the first pass accepts pairs as far apart as a plausible prior error (so a
+// prior off by up to max_correction_mm still finds its surface), the second tightens to
 // max_correspondence_mm so that the final pose is set by close, reliable pairs only.
-Refinement refine(const CloudT::Ptr& source, const CloudT::Ptr& target,
-                  const pcl::search::KdTree<PointT>::Ptr& target_tree, double coarse_mm,
-                  const Params& params) {
+Refinement refine(const CloudT::Ptr& source, const pcl::search::KdTree<PointT>& target_tree,
+                  double coarse_mm, double scale_mm, const Params& params) {
   CloudT::Ptr icp_source = source;
   if (source->size() > static_cast<std::size_t>(params.icp_max_points)) {
     icp_source = std::make_shared<CloudT>();
@@ -211,37 +322,52 @@ Refinement refine(const CloudT::Ptr& source, const CloudT::Ptr& target,
     sample.setSeed(kSampleSeed);
     sample.filter(*icp_source);
   }
-
-  PointToPlaneIcp icp;
-  icp.setInputSource(icp_source);
-  icp.setInputTarget(target);
-  icp.setSearchMethodTarget(target_tree, true);  // the tree is already built on `target`
-  icp.setMaximumIterations(params.max_iterations);
-  // Converged when an iteration moves the view by less than 1e-4 mm and 1e-5 rad (1e-3 mm at
-  // 100 mm): far below the scanner's noise, yet reachable on real data, where the trimmed
-  // correspondence set keeps changing by a few pairs and ICP never becomes exactly stationary.
-  icp.setTransformationEpsilon(1e-8);                    // squared mm per iteration
-  icp.setTransformationRotationEpsilon(std::cos(1e-5));  // cosine of the angle per iteration
-  auto same_surface = std::make_shared<pcl::registration::CorrespondenceRejectorSurfaceNormal>();
-  same_surface->setThreshold(kMinNormalCosine);
-  icp.addCorrespondenceRejector(same_surface);
-  auto trimmed = std::make_shared<pcl::registration::CorrespondenceRejectorTrimmed>();
-  trimmed->setOverlapRatio(kTrimmedOverlapRatio);
-  trimmed->setMinCorrespondences(kMinCorrespondences);
-  icp.addCorrespondenceRejector(trimmed);
+  const CloudT& target = *target_tree.getInputCloud();
 
   Refinement result;
-  CloudT aligned;
-  Eigen::Matrix4d guess = Eigen::Matrix4d::Identity();
   for (double distance : {coarse_mm, params.max_correspondence_mm}) {
-    icp.setMaxCorrespondenceDistance(distance);
-    icp.align(aligned, guess);
-    result.iterations += icp.iterations();
-    result.converged = icp.hasConverged();
-    if (!result.converged) return result;
-    guess = icp.getFinalTransformation();
+    for (int iteration = 0; iteration < params.max_iterations; ++iteration) {
+      const CloudT::Ptr moved = transformed(*icp_source, result.correction);
+      std::vector<Pair> pairs = nearest_pairs(*moved, target_tree, distance);
+      if (pairs.size() < kMinCorrespondences) return result;  // lost its surface: not converged
+      // Trimmed: only the closest share of the pairs pulls.
+      const std::size_t kept = std::min(
+          pairs.size(), std::max(kMinCorrespondences, static_cast<std::size_t>(
+                                                          kTrimmedOverlapRatio * pairs.size())));
+      std::nth_element(pairs.begin(), pairs.begin() + (kept - 1), pairs.end(),
+                       [](const Pair& a, const Pair& b) { return a.distance_sq < b.distance_sq; });
+      pairs.resize(kept);
+
+      Matrix6d jtj = Matrix6d::Zero();
+      Vector6d jtr = Vector6d::Zero();
+      for (const Pair& pair : pairs) {
+        const PointT& p = (*moved)[pair.source];
+        const PointT& q = target[pair.target];
+        const Vec3d normal = q.getNormalVector3fMap().cast<double>();
+        Vector6d row;
+        row << p.getVector3fMap().cast<double>().cross(normal) / scale_mm, normal;
+        jtj.selfadjointView<Eigen::Lower>().rankUpdate(row);
+        jtr += row * along_target_normal(p, q);
+      }
+      jtj = jtj.selfadjointView<Eigen::Lower>();
+
+      Step step = constrained_step(jtj, jtr, params);
+      const Vec3d rotation = step.twist.head<3>() / scale_mm;
+      const Vec3d translation = step.twist.tail<3>();
+      const double angle = rotation.norm();
+      Eigen::Isometry3d delta{Eigen::Translation3d(translation)};
+      if (angle > 0) delta.rotate(Eigen::AngleAxisd(angle, rotation / angle));
+      result.correction = delta * result.correction;
+      result.degenerate = std::move(step.degenerate);
+      ++result.iterations;
+      // Converged when an iteration moves the view by less than 1e-4 mm and 1e-5 rad (1e-3 mm
+      // at 100 mm): far below the scanner's noise, yet reachable on real data, where the trimmed
+      // pair set keeps changing by a few pairs and ICP never becomes exactly stationary.
+      if (translation.norm() < 1e-4 && angle < 1e-5) break;
+    }
   }
-  result.correction.matrix() = guess;
+  // Like PCL's default criteria, running out of iterations still counts as converged.
+  result.converged = true;
   return result;
 }
 
@@ -308,6 +434,9 @@ Result register_views(const std::vector<ViewInput>& views, const Params& params)
     if (!at_prior->empty()) centroid /= static_cast<double>(at_prior->size());
     const Eigen::Isometry3d to_centred(Eigen::Translation3d(-centroid));
     const CloudT::Ptr source = transformed(*at_prior, to_centred);
+    double sum_sq_radius = 0.0;
+    for (const auto& p : *source) sum_sq_radius += p.getVector3fMap().cast<double>().squaredNorm();
+    if (!source->empty()) out.rms_radius_mm = std::sqrt(sum_sq_radius / source->size());
     const CloudT::Ptr target = transformed(*placed, to_centred);
     auto target_tree = std::make_shared<pcl::search::KdTree<PointT>>();
     target_tree->setInputCloud(target);
@@ -319,8 +448,11 @@ Result register_views(const std::vector<ViewInput>& views, const Params& params)
 
     Eigen::Isometry3d correction = Eigen::Isometry3d::Identity();  // centred frame
     if (overlaps && params.refine_with_icp) {
-      const Refinement refinement = refine(source, target, target_tree, coarse_mm, params);
+      const Refinement refinement =
+          refine(source, *target_tree, coarse_mm, out.rms_radius_mm, params);
       out.iterations = refinement.iterations;
+      out.degenerate = refinement.degenerate;
+      for (const auto& direction : out.degenerate) out.flags.push_back("degenerate:" + direction.name);
       const Eigen::Isometry3d world_correction =
           to_centred.inverse() * refinement.correction * to_centred;
       out.proposed_correction_deg = to_deg(Eigen::AngleAxisd(world_correction.linear()).angle());
