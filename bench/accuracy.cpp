@@ -3,6 +3,7 @@
 // runs, simulated turntable at time_scale 0), each detected sherd's sherd.json is read back and
 // compared with the truth of the same scene. Prints one JSON object per truth sherd, then a summary.
 //   bench_accuracy [--config config/station.toml] [--seeds 10] [--first-seed 1]
+#include "bench/bench_stats.h"
 #include "config/station_config.h"
 #include "daemon/jobs.h"
 #include "daemon/station.h"
@@ -27,16 +28,8 @@ using sherd::Vec3d;
 
 Vec3d vec(const nlohmann::json& a) { return {a[0].get<double>(), a[1].get<double>(), a[2].get<double>()}; }
 
-double quantile(std::vector<double> v, double q) {
-  if (v.empty()) return NAN;
-  std::sort(v.begin(), v.end());
-  const double at = q * static_cast<double>(v.size() - 1);
-  const auto lo = static_cast<std::size_t>(std::floor(at));
-  const auto hi = std::min(lo + 1, v.size() - 1);
-  return v[lo] + (at - static_cast<double>(lo)) * (v[hi] - v[lo]);
-}
-
-nlohmann::json number_or_null(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+using sherd::bench::number_or_null;
+using sherd::bench::quantile;
 
 std::optional<double> number_at(const nlohmann::json& j, const char* key) {
   if (!j.contains(key) || !j[key].is_number()) return std::nullopt;

@@ -7,6 +7,7 @@
 // Errors compare relative poses (view 0 → view i), so the arbitrary world frame cancels.
 // Prints one JSON object per view and method, then a summary per data set and method.
 //   bench_registration [--conf DIR/bun.conf] [--config config/station.toml] [--seeds 3]
+#include "bench/bench_stats.h"
 #include "config/station_config.h"
 #include "core/errors.h"
 #include "daemon/station.h"
@@ -78,16 +79,8 @@ ViewError relative_error(const Pose& est0, const Pose& est_i, const Pose& truth0
           (est_rel * view_centroid - truth_rel * view_centroid).norm()};
 }
 
-double quantile(std::vector<double> v, double q) {
-  if (v.empty()) return NAN;
-  std::sort(v.begin(), v.end());
-  const double at = q * static_cast<double>(v.size() - 1);
-  const auto lo = static_cast<std::size_t>(std::floor(at));
-  const auto hi = std::min(lo + 1, v.size() - 1);
-  return v[lo] + (at - static_cast<double>(lo)) * (v[hi] - v[lo]);
-}
-
-nlohmann::json number_or_null(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+using sherd::bench::number_or_null;
+using sherd::bench::quantile;
 
 // ---------------------------------------------------------------------------------------------
 // Stanford .conf layout

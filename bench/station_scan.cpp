@@ -2,6 +2,7 @@
 // in-process (the same JobRunner sherdd runs), repeated; prints one JSON object per line:
 // each run's total and per-stage durations, then the medians and each stage's share.
 //   bench_station_scan [--config config/station.toml] [--runs 3]
+#include "bench/bench_stats.h"
 #include "config/station_config.h"
 #include "daemon/jobs.h"
 #include "daemon/station.h"
@@ -19,12 +20,7 @@
 
 namespace {
 
-double median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  const auto n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
+using sherd::bench::median;
 
 // "axis:s01" and "axis:s02" are one stage for the share.
 std::string stage_kind(const std::string& stage) { return stage.substr(0, stage.find(':')); }
