@@ -39,8 +39,8 @@ constexpr int kNormalNeighbours = 16;  // k of the k-nearest-neighbour plane fit
 // together; the header's VIEWPOINT fields hold a pose, not a time.
 constexpr const char* kTimestampTag = "# sherdscan timestamp_ns ";
 
-[[noreturn]] void fail(const fs::path& file, const std::string& what, const std::string& todo) {
-  throw InputError(fmt::format("{}: {}; {}", file.string(), what, todo));
+[[noreturn]] void fail(const fs::path& file, const std::string& what, const std::string& what_to_do) {
+  throw InputError(fmt::format("{}: {}; {}", file.string(), what, what_to_do));
 }
 
 std::string lower_extension(const fs::path& file) {
@@ -135,18 +135,18 @@ void check_pcd_body(const fs::path& file) {
   Eigen::Quaternionf orientation;
   int version = 0, data_type = 0;
   unsigned int data_offset = 0;
-  const auto todo = "re-export the file as PCD 0.7";
+  const auto what_to_do = "re-export the file as PCD 0.7";
   if (pcl::PCDReader().readHeader(file.string(), header, origin, orientation, version, data_type, data_offset) < 0) {
-    fail(file, "corrupt PCD header", todo);
+    fail(file, "corrupt PCD header", what_to_do);
   }
   const std::uint64_t points = std::uint64_t{header.width} * header.height;
   if (header.fields.empty() || points == 0 || header.point_step == 0) {
-    fail(file, "PCD header announces no points or no fields", todo);
+    fail(file, "PCD header announces no points or no fields", what_to_do);
   }
   const std::uint64_t file_size = fs::file_size(file);
   enum : int { kAscii = 0, kBinary = 1, kBinaryCompressed = 2 };
   if (data_type == kBinary && data_offset + points * header.point_step > file_size) {
-    fail(file, fmt::format("truncated PCD: {} points announced, data ends early", points), todo);
+    fail(file, fmt::format("truncated PCD: {} points announced, data ends early", points), what_to_do);
   }
   if (data_type == kBinaryCompressed) {
     // The compressed block starts with its compressed and uncompressed sizes (uint32 each).
@@ -155,7 +155,7 @@ void check_pcd_body(const fs::path& file) {
     in.seekg(data_offset);
     in.read(reinterpret_cast<char*>(&compressed_size), sizeof compressed_size);
     if (!in || data_offset + 8 + std::uint64_t{compressed_size} > file_size) {
-      fail(file, "truncated compressed PCD", todo);
+      fail(file, "truncated compressed PCD", what_to_do);
     }
   }
 }
