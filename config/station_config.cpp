@@ -245,8 +245,8 @@ StationConfig load_station_config(const fs::path& file) {
 
   // The tables of the file, in the order the documented file has them.
   const std::vector<std::string_view> names = {"station",      "scan",         "scanner",
-                                               "turntable",    "simulation",   "registration",
-                                               "segmentation", "render"};
+                                               "turntable",    "simulation",   "calibration",
+                                               "registration", "segmentation", "render"};
   for (const auto& [key, node] : root) {
     if (std::find(names.begin(), names.end(), key.str()) == names.end()) {
       errors.fail(node, key.str(), "one of the tables " + join(names, ", "),
@@ -312,15 +312,27 @@ StationConfig load_station_config(const fs::path& file) {
   turntable.read("time_scale", tt.time_scale, at_least(0));
   turntable.read("fault", tt.fault, {"none", "stall", "timeout", "disconnect"});
   turntable.read("fault_at_move", tt.fault_at_move, from_to(1, 1'000'000));
+  turntable.read("angle_sd_deg", tt.angle_sd_deg, above_to(0, 10));
   turntable.reject_unknown_keys();
 
   auto& sim = config.simulation;
   Section simulation = section("simulation");
   simulation.read("seed", sim.seed);
-  simulation.read("scene", sim.scene, {"frame", "plate", "vessel", "empty"});
+  simulation.read("scene", sim.scene, {"frame", "plate", "vessel", "empty", "calibration"});
   simulation.read("sherds", sim.sherds, from_to(1, 10));
   simulation.read("background", sim.background, {"black", "white"});
+  simulation.read("scanner_tilt_error_deg", sim.scanner_tilt_error_deg, from_to(0, 10));
+  simulation.read("scanner_offset_error_mm", sim.scanner_offset_error_mm, from_to(0, 50));
   simulation.reject_unknown_keys();
+
+  Section calibration = section("calibration");
+  calibration.read("views", config.calibration.views, from_to(3, 360));
+  const auto turntable_file = calibration.read_path("turntable_file");
+  calibration.reject_unknown_keys();
+  if (turntable_file) {
+    config.calibration.turntable_file = fs::absolute(*turntable_file).lexically_normal();
+    config.calibration.turntable_file_from_config = true;
+  }  // else set_data_dir above has put it under data_dir
 
   auto& reg = config.registration;
   Section registration = section("registration");
@@ -330,6 +342,7 @@ StationConfig load_station_config(const fs::path& file) {
   registration.read("max_iterations", reg.max_iterations, from_to(1, 10'000));
   registration.read("max_correction_deg", reg.max_correction_deg, above_to(0, 180));
   registration.read("max_correction_mm", reg.max_correction_mm, above(0));
+  registration.read("use_colour", reg.use_colour);
   registration.reject_unknown_keys();
 
   auto& seg = config.segmentation;
@@ -365,6 +378,9 @@ void set_data_dir(StationConfig& config, const fs::path& data_dir) {
   paths.log_file = paths.data_dir / "sherdd.log";
   if (!paths.output_dir_from_config) paths.output_dir = paths.data_dir / "output";
   if (!paths.socket_from_config) paths.socket = paths.data_dir / "sherdd.sock";
+  if (!config.calibration.turntable_file_from_config) {
+    config.calibration.turntable_file = paths.data_dir / "calibration" / "turntable.json";
+  }
 }
 
 }  // namespace sherd::config

@@ -53,13 +53,25 @@ struct TurntableSettings {
   double time_scale = 1.0;           // simulated motion time multiplier (0 = instantaneous)
   std::string fault = "none";        // simulated fault: none | stall | timeout | disconnect
   int fault_at_move = 1;             // the move (1-based, counting from the first move of a scan) that fails
+  double angle_sd_deg = 0.1;         // accuracy of the encoder's angle (1σ): weight of the turntable prior
 };
 
 struct SimulationSettings {
   std::uint64_t seed = 42;
-  std::string scene = "frame";       // frame (sherds upright in a holding frame) | plate | vessel | empty
+  std::string scene = "frame";       // frame (sherds upright in a holding frame) | plate | vessel | empty | calibration
   int sherds = 4;                    // number of sherds for frame / plate scenes
   std::string background = "black";  // black | white
+  // How far the simulated scanner is physically mounted off its configured ([scanner]) pose:
+  // a tilt about an axis through its optical centre, and a shift of that centre, in directions
+  // drawn from `seed`. 0 = mounted exactly as configured.
+  double scanner_tilt_error_deg = 0.0;
+  double scanner_offset_error_mm = 0.0;
+};
+
+struct CalibrationSettings {
+  int views = 12;                         // turntable stops of a calibration scan, over 360°
+  std::filesystem::path turntable_file;   // [calibration] turntable_file, default data_dir/calibration/turntable.json
+  bool turntable_file_from_config = false;  // set explicitly (then set_data_dir keeps it)
 };
 
 struct RegistrationSettings {
@@ -69,6 +81,7 @@ struct RegistrationSettings {
   int max_iterations = 40;
   double max_correction_deg = 3.0;        // a larger correction from the turntable prior is flagged
   double max_correction_mm = 5.0;
+  bool use_colour = false;                // photometric term where views have colour
 };
 
 struct SegmentationSettings {
@@ -97,6 +110,7 @@ struct StationConfig {
   ScannerSettings scanner;
   TurntableSettings turntable;
   SimulationSettings simulation;
+  CalibrationSettings calibration;
   RegistrationSettings registration;
   SegmentationSettings segmentation;
   RenderSettings render;

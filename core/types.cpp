@@ -1,5 +1,9 @@
 #include "core/types.h"
 
+#include "core/errors.h"
+
+#include <fmt/format.h>
+
 #include <cmath>
 #include <limits>
 
@@ -106,6 +110,27 @@ Mesh OrganisedView::to_mesh(float max_edge_mm) const {
     }
   }
   return mesh;
+}
+
+void OrganisedView::check(std::string_view part, std::size_t index) const {
+  const std::size_t n = cells();
+  const bool sizes_ok = width >= 0 && height >= 0 && points.size() == n && valid.size() == n &&
+                        (normals.empty() || normals.size() == n) &&
+                        (colours.empty() || colours.size() == n);
+  if (!sizes_ok) {
+    throw InputError(fmt::format(
+        "{}: view {} is corrupt ({}x{} grid but {} points, {} validity flags, {} normals, {} "
+        "colours); re-capture or re-read the raw view",
+        part, index, width, height, points.size(), valid.size(), normals.size(), colours.size()));
+  }
+  for (std::size_t c = 0; c < n; ++c) {
+    if (valid[c] && !points[c].allFinite()) {
+      throw InputError(fmt::format(
+          "{}: view {} cell {} (row {}, column {}) is marked valid but its point is not finite; "
+          "re-capture or re-read the raw view",
+          part, index, c, c / width, c % width));
+    }
+  }
 }
 
 }  // namespace sherd

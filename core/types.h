@@ -7,6 +7,7 @@
 #include <array>
 #include <cstdint>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace sherd {
@@ -75,6 +76,9 @@ struct OrganisedView {
   // valid cells whose depths do not jump by more than `max_edge_mm` (a depth discontinuity is an
   // occlusion boundary, not surface).
   Mesh to_mesh(float max_edge_mm) const;
+  // Throws InputError, naming `part` and the view's `index`, when the arrays do not match
+  // width × height or a valid cell is not finite.
+  void check(std::string_view part, std::size_t index) const;
 };
 
 }  // namespace sherd

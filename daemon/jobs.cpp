@@ -11,6 +11,8 @@
 #include <chrono>
 #include <cmath>
 #include <ctime>
+#include <functional>
+#include <optional>
 #include <set>
 
 namespace sherd::station {
@@ -27,6 +29,27 @@ std::string utc_now() {
 }
 
 constexpr double kDeg = M_PI / 180.0;
+
+// The calibration object lies on the plate for a calibration scan only: put on at construction,
+// taken off at destruction (also when the scan fails).
+class CalibrationObjectOnPlate {
+ public:
+  explicit CalibrationObjectOnPlate(const std::function<void(bool)>& place) : place_(place) {
+    if (place_) place_(true);
+  }
+  ~CalibrationObjectOnPlate() {
+    try {
+      if (place_) place_(false);
+    } catch (const std::exception& e) {
+      spdlog::error("taking the calibration object off the plate: {}", e.what());
+    }
+  }
+  CalibrationObjectOnPlate(const CalibrationObjectOnPlate&) = delete;
+  CalibrationObjectOnPlate& operator=(const CalibrationObjectOnPlate&) = delete;
+
+ private:
+  const std::function<void(bool)>& place_;
+};
 
 }  // namespace
 
@@ -61,7 +84,19 @@ JobRunner::JobRunner(const config::StationConfig& config, std::shared_ptr<db::St
 JobRunner::~JobRunner() { stop(); }
 
 void JobRunner::start() {
+  if (station_.turntable_calibration) {
+    spdlog::info("turntable calibration in force from {}", config_.calibration.turntable_file.string());
+  } else {
+    spdlog::warn("{}", station_.calibration_note);
+  }
   for (const auto& scan : store_->unfinished_scans()) {
+    if (scan.source == "calibration") {
+      // A calibration is quick to repeat and its object may have been taken off: not resumed.
+      store_->set_scan_state(scan.id, db::ScanState::Failed,
+                             fmt::format("interrupted by a restart of sherdd: run `sherdctl calibrate turntable` "
+                                         "again ({})", calibration_in_force()));
+      continue;
+    }
     std::lock_guard lock(mutex_);
     if (scan.source != "station") continue;
     if (scan.state == db::ScanState::Acquiring) {
@@ -93,15 +128,10 @@ void JobRunner::stop() {
   subscribers_.clear();
 }
 
-std::pair<std::string, std::shared_ptr<Subscription>> JobRunner::submit_scan() {
-  if (stopping_) throw InputError("sherdd is shutting down: no new scans; start it again and retry");
-  const nlohmann::json settings = {{"views", config_.scan.views},
-                                   {"start_angle_deg", config_.scan.start_angle_deg},
-                                   {"dpi", config_.render.dpi},
-                                   {"material", config_.render.material},
-                                   {"config", config_.source.string()}};
-  const auto scan_id = store_->create_scan("station", config_.scan.views, settings,
-                                           config_.paths.output_dir.string());
+std::pair<std::string, std::shared_ptr<Subscription>> JobRunner::submit(const std::string& source, int views,
+                                                                        const nlohmann::json& settings) {
+  if (stopping_) throw InputError("sherdd is shutting down: no new jobs; start it again and retry");
+  const auto scan_id = store_->create_scan(source, views, settings, config_.paths.output_dir.string());
   auto subscription = std::make_shared<Subscription>();
   {
     std::lock_guard lock(mutex_);
@@ -109,8 +139,26 @@ std::pair<std::string, std::shared_ptr<Subscription>> JobRunner::submit_scan() {
     to_acquire_.push_back(scan_id);
   }
   work_.notify_all();
-  spdlog::info("scan {} queued ({} views)", scan_id, config_.scan.views);
+  spdlog::info("{} {} queued ({} views)", source == "calibration" ? "calibration" : "scan", scan_id, views);
   return {scan_id, subscription};
+}
+
+std::pair<std::string, std::shared_ptr<Subscription>> JobRunner::submit_scan() {
+  return submit("station", config_.scan.views,
+                {{"views", config_.scan.views},
+                 {"start_angle_deg", config_.scan.start_angle_deg},
+                 {"dpi", config_.render.dpi},
+                 {"material", config_.render.material},
+                 {"config", config_.source.string()}});
+}
+
+std::pair<std::string, std::shared_ptr<Subscription>> JobRunner::submit_turntable_calibration() {
+  return submit("calibration", config_.calibration.views,
+                {{"kind", "turntable"},
+                 {"views", config_.calibration.views},
+                 {"start_angle_deg", 0.0},
+                 {"turntable_file", config_.calibration.turntable_file.string()},
+                 {"config", config_.source.string()}});
 }
 
 std::shared_ptr<Subscription> JobRunner::subscribe(const std::string& scan_id) {
@@ -147,7 +195,19 @@ nlohmann::json JobRunner::status() const {
     turntable["error"] = e.what();
   }
   std::lock_guard lock(mutex_);
+  nlohmann::json calibration = {{"calibrated", station_.turntable_calibration.has_value()},
+                                {"file", config_.calibration.turntable_file.string()}};
+  if (station_.turntable_calibration) {
+    calibration.update(calibration::to_json(*station_.turntable_calibration));
+  } else {
+    calibration["note"] = station_.calibration_note;
+  }
+  const auto& prior = station_.prior_uncertainty;
+  calibration["prior_uncertainty"] = {{"angle_sd_deg", prior.angle_sd_deg},
+                                      {"tilt_sd_deg", prior.tilt_sd_deg},
+                                      {"translation_sd_mm", prior.translation_sd_mm}};
   return {{"station", config_.name},
+          {"turntable_calibration", calibration},
           {"scanner", station_.scanner->describe()},
           {"turntable", turntable},
           {"acquiring", acquiring_.empty() ? nlohmann::json(nullptr) : nlohmann::json(acquiring_)},
@@ -190,6 +250,9 @@ void JobRunner::acquire(const std::string& scan_id) {
     if (!scan) throw InputError(fmt::format("scan {} vanished from the database", scan_id));
     std::set<int> on_disk;
     for (const auto& v : store_->views(scan_id)) on_disk.insert(v.index);
+    const bool calibration = scan->source == "calibration";
+    std::optional<CalibrationObjectOnPlate> object_on_plate;
+    if (calibration) object_on_plate.emplace(station_.place_calibration_object);
     const int planned = scan->planned_views;
     const double start_deg = scan->settings.value("start_angle_deg", 0.0);
     const auto raw_dir = config_.paths.raw_dir / scan_id;
@@ -230,14 +293,72 @@ void JobRunner::acquire(const std::string& scan_id) {
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     store_->add_stage(scan_id, "acquisition", ms, {{"views", planned}, {"resumed_with", on_disk.size()}});
     store_->set_scan_state(scan_id, db::ScanState::Acquired);
+    if (calibration) {
+      object_on_plate.reset();
+      calibrate_turntable(scan_id);
+      return;
+    }
     {
       std::lock_guard lock(mutex_);
       to_process_.push_back(scan_id);
     }
     work_.notify_all();
   } catch (const std::exception& e) {
-    fail(scan_id, fmt::format("acquisition: {} (views already captured are kept in {})", e.what(),
-                              (config_.paths.raw_dir / scan_id).string()));
+    const bool calibration = store_->scan(scan_id).value_or(db::ScanRecord{}).source == "calibration";
+    fail(scan_id, fmt::format("acquisition: {} (views already captured are kept in {}{}{})", e.what(),
+                              (config_.paths.raw_dir / scan_id).string(), calibration ? "; " : "",
+                              calibration ? calibration_in_force() : ""));
+  }
+}
+
+std::string JobRunner::calibration_in_force() const {
+  std::lock_guard lock(mutex_);
+  return station_.turntable_calibration ? "the previous calibration stays in force"
+                                        : "the station stays uncalibrated";
+}
+
+void JobRunner::calibrate_turntable(const std::string& scan_id) {
+  const auto start = std::chrono::steady_clock::now();
+  try {
+    store_->set_scan_state(scan_id, db::ScanState::Processing);
+    publish(scan_id, {{"event", "stage"}, {"stage", "calibration"}, {"state", "started"}});
+    // From the raw files, like a scan's processing: what is computed is what is kept.
+    const auto records = store_->views(scan_id);
+    std::vector<OrganisedView> captured;
+    captured.reserve(records.size());
+    for (const auto& record : records) captured.push_back(io::read_view(record.raw_path));
+    std::vector<calibration::CalibrationView> views;
+    for (std::size_t i = 0; i < records.size(); ++i) {
+      views.push_back({&captured[i], records[i].measured_angle_deg * kDeg});
+    }
+    const auto result = calibration::estimate_turntable_axis(views);
+
+    const auto& file = config_.calibration.turntable_file;
+    const nlohmann::json provenance = {{"created_at", utc_now()}, {"scan_id", scan_id},
+                                       {"raw_dir", (config_.paths.raw_dir / scan_id).string()}};
+    calibration::write_turntable_calibration(file, result, provenance);
+    nlohmann::json document = calibration::to_json(result);
+    document.update(provenance);
+    document["file"] = file.string();
+    store_->add_calibration("turntable", scan_id, document);
+    {
+      std::lock_guard lock(mutex_);
+      apply_turntable_calibration(station_, result, config_);
+    }
+    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    store_->add_stage(scan_id, "calibration", ms, document);
+    store_->set_scan_state(scan_id, db::ScanState::Done);
+    publish(scan_id, {{"event", "stage"}, {"stage", "calibration"}, {"ms", ms}});
+    spdlog::info("turntable calibrated: axis direction ({:.6f}, {:.6f}, {:.6f}) ± {:.4f}°, point ({:.3f}, "
+                 "{:.3f}, {:.3f}) mm ± {:.4f} mm, RMS {:.4f} mm ({} views, {} spheres) → {}",
+                 result.axis_direction.x(), result.axis_direction.y(), result.axis_direction.z(),
+                 result.direction_sd_deg, result.axis_point_mm.x(), result.axis_point_mm.y(),
+                 result.axis_point_mm.z(), result.point_sd_mm, result.rms_residual_mm, result.views_used,
+                 result.spheres_used, file.string());
+    publish(scan_id, {{"event", "finished"}, {"state", "done"}, {"calibration", document}});
+  } catch (const std::exception& e) {
+    fail(scan_id, fmt::format("turntable calibration: {} (raw views kept in {}; {})", e.what(),
+                              (config_.paths.raw_dir / scan_id).string(), calibration_in_force()));
   }
 }
 
@@ -250,8 +371,15 @@ void JobRunner::process(const std::string& scan_id) {
     for (const auto& v : store_->views(scan_id)) {
       views.push_back({v.index, v.raw_path, v.measured_angle_deg * kDeg});
     }
+    Pose scanner_to_world;
+    registration::PriorUncertainty prior;
+    {
+      std::lock_guard lock(mutex_);  // a calibration may be changing them
+      scanner_to_world = station_.scanner_to_world;
+      prior = station_.prior_uncertainty;
+    }
     Pipeline pipeline(config_, *store_, [this, scan_id](const nlohmann::json& e) { publish(scan_id, e); });
-    const auto outcome = pipeline.process_views(scan_id, views, station_.scanner_to_world);
+    const auto outcome = pipeline.process_views(scan_id, views, scanner_to_world, prior);
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     store_->add_stage(scan_id, "processing", ms, {{"sherds", outcome.sherds.size()}});
     store_->set_scan_state(scan_id, db::ScanState::Done);

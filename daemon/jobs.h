@@ -2,6 +2,11 @@
 // after another) and one processing thread, so that processing of scan N overlaps acquisition of
 // scan N+1. Raw views are on disk and in the database before processing starts; on start-up
 // every unfinished scan is resumed from what the database holds.
+//
+// A turntable calibration is a job of the acquisition thread too (it needs the hardware): a
+// "scan" with source "calibration" whose views (kept on disk like any scan's) go to the
+// estimator instead of the pipeline; its result is stored (file + database) and put in force at
+// once, so every scan acquired after it uses it. A failed calibration leaves the previous one.
 #pragma once
 
 #include "config/station_config.h"
@@ -52,6 +57,9 @@ class JobRunner {
   // Creates a scan and queues its acquisition; the returned subscription sees all its events.
   std::pair<std::string, std::shared_ptr<Subscription>> submit_scan();
   std::shared_ptr<Subscription> subscribe(const std::string& scan_id);
+  // Queues a turntable calibration (a job id like a scan's; events as for a scan, the finished
+  // event carries {"calibration": {…}} with the figures).
+  std::pair<std::string, std::shared_ptr<Subscription>> submit_turntable_calibration();
 
   nlohmann::json status() const;
 
@@ -60,13 +68,20 @@ class JobRunner {
   void worker_loop(std::deque<std::string>& queue, std::string& in_hand,
                    void (JobRunner::*work)(const std::string&));
   void acquire(const std::string& scan_id);
+  // The calibration scan's views → estimator → file, database, station (under mutex_).
+  void calibrate_turntable(const std::string& scan_id);
+  // What a failed calibration leaves: "the previous calibration stays in force" or "… uncalibrated".
+  std::string calibration_in_force() const;
   void process(const std::string& scan_id);
   void fail(const std::string& scan_id, const std::string& reason);
   void publish(const std::string& scan_id, nlohmann::json event);
+  // A job for the acquisition thread; the subscription sees its events.
+  std::pair<std::string, std::shared_ptr<Subscription>> submit(const std::string& source, int views,
+                                                               const nlohmann::json& settings);
 
   const config::StationConfig& config_;
   std::shared_ptr<db::Store> store_;
-  Station station_;
+  Station station_;  // the calibration fields under mutex_ (written by a calibration, read by processing)
 
   mutable std::mutex mutex_;
   std::condition_variable work_;

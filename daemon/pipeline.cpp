@@ -3,6 +3,7 @@
 #include "core/errors.h"
 #include "daemon/documents.h"
 #include "processing/axis/axis.h"
+#include "processing/fusion/fusion.h"
 #include "processing/io/model_io.h"
 #include "processing/profile/profile.h"
 #include "processing/registration/registration.h"
@@ -42,6 +43,7 @@ registration::Params registration_params(const config::RegistrationSettings& s) 
   p.max_iterations = s.max_iterations;
   p.max_correction_deg = s.max_correction_deg;
   p.max_correction_mm = s.max_correction_mm;
+  p.use_colour = s.use_colour;
   return p;
 }
 
@@ -50,10 +52,29 @@ render::PlateSettings plate_settings(const config::RenderSettings& s) {
 }
 
 nlohmann::json view_figures(const registration::ViewResult& v) {
-  return {{"pose", to_json(v.pose)},       {"rms_mm", v.rms_mm},
-          {"overlap", v.overlap},          {"iterations", v.iterations},
-          {"correction_deg", v.correction_deg}, {"correction_mm", v.correction_mm},
-          {"refined", v.refined},          {"flags", v.flags}};
+  auto degenerate = nlohmann::json::array();
+  for (const auto& d : v.degenerate) degenerate.push_back(d.name);
+  return {{"pose", to_json(v.pose)},
+          {"merged", v.merged},
+          {"rms_mm", v.rms_mm},
+          {"overlap", v.overlap},
+          {"iterations", v.iterations},
+          {"edges", v.edges},
+          {"correction_deg", v.correction_deg},
+          {"correction_about_axis_deg", v.about_z_deg},
+          {"correction_mm", v.correction_mm},
+          {"sd", {{"angle_deg", v.angle_sd_deg}, {"tilt_deg", v.tilt_sd_deg}, {"translation_mm", v.translation_sd_mm}}},
+          {"degenerate", degenerate},
+          {"flags", v.flags}};
+}
+
+nlohmann::json edge_figures(const registration::EdgeResult& e) {
+  return {{"target", e.target},         {"source", e.source},
+          {"neighbours", e.neighbours}, {"status", e.status},
+          {"overlap_at_prior", e.overlap_at_prior},
+          {"overlap", e.overlap},       {"rms_mm", e.rms_mm},
+          {"iterations", e.iterations}, {"colour", e.used_colour},
+          {"correction_deg", e.correction_deg}, {"correction_mm", e.correction_mm}};
 }
 
 }  // namespace
@@ -88,7 +109,8 @@ void Pipeline::record_stage(const std::string& scan_id, const std::string& stage
 }
 
 ScanOutcome Pipeline::process_views(const std::string& scan_id, const std::vector<ViewFile>& views,
-                                    const Pose& scanner_to_world) {
+                                    const Pose& scanner_to_world,
+                                    const registration::PriorUncertainty& prior_uncertainty) {
   auto start = Clock::now();
   std::vector<OrganisedView> loaded;
   loaded.reserve(views.size());
@@ -98,7 +120,7 @@ ScanOutcome Pipeline::process_views(const std::string& scan_id, const std::vecto
     inputs.push_back({&loaded[i], registration::turntable_prior(scanner_to_world, views[i].angle_rad)});
   }
   emit({{"event", "stage"}, {"scan_id", scan_id}, {"stage", "registration"}, {"state", "started"}});
-  const auto registered = registration::register_views(inputs, registration_params(config_.registration));
+  const auto registered = registration::register_views(inputs, prior_uncertainty, registration_params(config_.registration));
 
   auto view_docs = nlohmann::json::array();
   int flagged = 0;
@@ -107,7 +129,6 @@ ScanOutcome Pipeline::process_views(const std::string& scan_id, const std::vecto
     auto figures = view_figures(r);
     store_.set_view_registration(scan_id, views[i].index, figures);
     for (const auto& flag : r.flags) {
-      if (flag == "reference") continue;  // the view that anchors the frame: nothing wrong with it
       if (flag.rfind("degenerate:", 0) == 0) {
         // Normal for a pot: the geometry cannot see this direction, the turntable prior holds it.
         spdlog::info("view {}: {} — not constrained by the geometry, kept at the turntable prior",
@@ -115,19 +136,55 @@ ScanOutcome Pipeline::process_views(const std::string& scan_id, const std::vecto
         continue;
       }
       ++flagged;
-      spdlog::warn("view {}: {} (kept at the turntable prior: not merged blindly)", views[i].index, flag);
+      spdlog::warn("view {}: {} — left out of the fused model (raw view kept: {})", views[i].index, flag,
+                   views[i].raw_path.string());
     }
     figures["index"] = views[i].index;
     figures["raw"] = views[i].raw_path.string();
     figures["angle_deg"] = views[i].angle_rad * 180.0 / M_PI;
     view_docs.push_back(figures);
   }
+  auto edge_docs = nlohmann::json::array();
+  for (const auto& e : registered.edges) {
+    edge_docs.push_back(edge_figures(e));
+    if (e.status != "accepted") {
+      spdlog::warn("views {} and {}: their pair registration was dropped ({})", views[e.target].index,
+                   views[e.source].index, e.status);
+    }
+  }
   record_stage(scan_id, "registration", ms_since(start),
-               {{"views", views.size()}, {"flagged_views", flagged},
-                {"fused_points", registered.fused.vertices.size()}});
+               {{"views", views.size()}, {"flagged_views", flagged}, {"edges", registered.edges.size()},
+                {"graph_iterations", registered.graph_iterations}});
 
-  nlohmann::json scan_doc = {{"views", view_docs}};
-  return analyse_scan(scan_id, registered.fused, segmentation_params(config_.segmentation), scan_doc);
+  start = Clock::now();
+  std::vector<fusion::PosedView> posed;
+  for (std::size_t i = 0; i < views.size(); ++i) {
+    if (registered.views[i].merged) posed.push_back({&loaded[i], registered.views[i].pose});
+  }
+  if (posed.empty()) {
+    throw ProcessingError(fmt::format(
+        "scan {}: no view could be registered (every view is flagged: see scan.json and the log); "
+        "the raw views are kept — check the turntable calibration and that the object did not move",
+        scan_id));
+  }
+  // One voxel per scanner pixel rather than fusion's default two: measured with bench/accuracy
+  // (6 seeds, 24 sherds), axis error median 0.09° against 0.14°; the coarser ownership let the
+  // flattest sherds (plate bases) tilt by up to 10°.
+  fusion::Params fusion_params;
+  fusion_params.voxel_mm = 0.5;
+  const fusion::Result fused = fusion::fuse_views(posed, fusion_params);
+  const nlohmann::json fusion_figures = {{"views", fused.views_used},
+                                         {"input_points", fused.input_points},
+                                         {"outliers_removed", fused.outliers_removed},
+                                         {"overlap_points_dropped", fused.overlap_points_dropped},
+                                         {"mesh_vertices", fused.mesh.vertices.size()},
+                                         {"mesh_triangles", fused.mesh.triangles.size()},
+                                         {"cloud_points", fused.cloud.size()}};
+  record_stage(scan_id, "fusion", ms_since(start), fusion_figures);
+
+  nlohmann::json scan_doc = {
+      {"views", view_docs}, {"registration_edges", edge_docs}, {"fusion", fusion_figures}};
+  return analyse_scan(scan_id, fused.mesh, segmentation_params(config_.segmentation), scan_doc);
 }
 
 ScanOutcome Pipeline::process_model(const std::string& scan_id, const Mesh& model,

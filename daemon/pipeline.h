@@ -6,6 +6,7 @@
 #include "config/station_config.h"
 #include "core/types.h"
 #include "db/store.h"
+#include "processing/registration/registration.h"
 #include "processing/segmentation/segmentation.h"
 
 #include <nlohmann/json.hpp>
@@ -49,7 +50,8 @@ class Pipeline {
   // Views of the station, read back from their raw files: placed by the turntable prior with the
   // calibrated scanner pose, refined, then segmented and analysed.
   ScanOutcome process_views(const std::string& scan_id, const std::vector<ViewFile>& views,
-                            const Pose& scanner_to_world);
+                            const Pose& scanner_to_world,
+                            const registration::PriorUncertainty& prior_uncertainty);
 
   // An existing model (already in one frame): segmented with `params`, then analysed.
   ScanOutcome process_model(const std::string& scan_id, const Mesh& model,

@@ -1,7 +1,8 @@
 // The control API between sherdctl and sherdd: one JSON object per line over a Unix domain
-// socket. Requests: {"cmd": "scan" | "status" | "jobs" | "show" | "follow", …}. Replies: one
-// object {"ok": true, …} or {"ok": false, "error": "…"}; "scan" and "follow" then stream the
-// scan's events until {"event": "finished", …}.
+// socket. Requests: {"cmd": "scan" | "calibrate" | "status" | "jobs" | "show" | "follow", …}
+// ("calibrate" with {"kind": "turntable"}). Replies: one object {"ok": true, …} or {"ok": false,
+// "error": "…"}; "scan", "calibrate" and "follow" then stream the job's events until
+// {"event": "finished", …} (a calibration's carries {"calibration": {…}}, its figures).
 #pragma once
 
 #include <nlohmann/json.hpp>

@@ -31,6 +31,18 @@ bool finished(db::ScanState state) { return state == db::ScanState::Done || stat
 
 }  // namespace
 
+std::string calibration_refusal(const std::string& kind) {
+  if (kind == "scanner") {
+    return "scanner calibration is not available yet (it comes with the structured-light scanner "
+           "driver): only `sherdctl calibrate turntable` can be run";
+  }
+  return fmt::format("unknown calibration \"{}\": use `sherdctl calibrate turntable`", kind);
+}
+
+namespace {
+
+}  // namespace
+
 Server::Server(const std::filesystem::path& socket_path, JobRunner& runner, db::Store& store)
     : socket_path_(socket_path), runner_(runner), store_(store) {}
 
@@ -110,6 +122,17 @@ void Server::serve(int fd) {
           stream(socket, subscription);
           break;
         }
+        if (cmd == "calibrate") {
+          const std::string kind = request->value("kind", "");
+          if (kind != "turntable") {
+            socket.send({{"ok", false}, {"error", calibration_refusal(kind)}});
+            break;
+          }
+          auto [job_id, subscription] = runner_.submit_turntable_calibration();
+          socket.send({{"ok", true}, {"scan_id", job_id}});
+          stream(socket, subscription);
+          break;
+        }
         if (cmd == "follow") {
           const std::string scan_id = request->value("scan_id", "");
           auto subscription = runner_.subscribe(scan_id);  // before the check: no event slips by
@@ -163,7 +186,7 @@ nlohmann::json Server::answer(const nlohmann::json& request) {
             {"sherds", sherds},    {"stages", store_.stages(scan_id)},    {"artifacts", artifacts}};
   }
   return {{"ok", false},
-          {"error", fmt::format("unknown command \"{}\": use scan, follow, status, jobs or show", cmd)}};
+          {"error", fmt::format("unknown command \"{}\": use scan, calibrate, follow, status, jobs or show", cmd)}};
 }
 
 }  // namespace sherd::station

@@ -15,6 +15,9 @@
 
 namespace sherd::station {
 
+// Why a calibration of `kind` cannot be run (every kind but "turntable"): one line for the operator.
+std::string calibration_refusal(const std::string& kind);
+
 class Server {
  public:
   Server(const std::filesystem::path& socket_path, JobRunner& runner, db::Store& store);

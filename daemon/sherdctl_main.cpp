@@ -1,9 +1,11 @@
-// sherdctl — the operator's and scripts' client: press scan, look at the station and past scans
-// (through sherdd's socket), or run the pipeline offline on existing files (no daemon needed).
+// sherdctl — the operator's and scripts' client: press scan, calibrate the turntable, look at the
+// station and past scans (through sherdd's socket), or run the pipeline offline on existing files
+// (no daemon needed).
 #include "config/station_config.h"
 #include "core/errors.h"
 #include "daemon/pipeline.h"
 #include "daemon/protocol.h"
+#include "daemon/server.h"
 #include "db/event_sink.h"
 #include "db/store.h"
 #include "processing/io/model_io.h"
@@ -14,6 +16,7 @@
 #include <spdlog/spdlog.h>
 
 #include <cstdlib>
+#include <functional>
 #include <iostream>
 
 namespace {
@@ -46,9 +49,11 @@ std::string fixed(const json& value, const char* unit) {
   return value.is_number() ? fmt::format("{:.1f} {}", value.get<double>(), unit) : "—";
 }
 
-// Streams a scan's events (after the first reply) to the terminal, and the plates' paths to
-// stdout when `print_plates`; returns the exit code.
-int follow_events(JsonLineSocket& socket, const std::string& scan_id, bool as_json, bool print_plates) {
+// Streams a job's events (after the first reply) to the terminal; `on_done` gets the finished
+// event of a job that succeeded (unless as_json: then every event is printed as it is). Returns
+// the exit code. `job` names the job in messages ("scan", "calibration").
+int follow_events(JsonLineSocket& socket, const std::string& scan_id, bool as_json, const std::string& job,
+                  const std::function<void(const json&)>& on_done) {
   while (auto event = socket.receive()) {
     if (as_json) std::cout << event->dump() << std::endl;
     const std::string kind = event->value("event", "");
@@ -65,19 +70,15 @@ int follow_events(JsonLineSocket& socket, const std::string& scan_id, bool as_js
                                reason.empty() ? "" : ": " + reason);
     } else if (kind == "finished") {
       if (event->value("state", "") != "done") {
-        std::cerr << fmt::format("sherdctl: scan {} failed: {}\n", scan_id, event->value("reason", ""));
+        std::cerr << fmt::format("sherdctl: {} {} failed: {}\n", job, scan_id, event->value("reason", ""));
         return 1;
       }
-      if (print_plates && !as_json) {
-        const auto& sherds = (*event)["sherds"];
-        if (sherds.empty()) std::cerr << fmt::format("scan {}: no sherds found\n", scan_id);
-        for (const auto& s : sherds) std::cout << s.value("plate", "") << '\n';
-      }
+      if (on_done && !as_json) on_done(*event);
       return 0;
     }
   }
-  std::cerr << fmt::format("sherdctl: lost the connection to sherdd; scan {} resumes when sherdd runs again "
-                           "(follow it with `sherdctl show {} --wait`)\n", scan_id, scan_id);
+  std::cerr << fmt::format("sherdctl: lost the connection to sherdd; {} {} goes on (or, a scan, resumes when "
+                           "sherdd runs again): follow it with `sherdctl show {} --wait`\n", job, scan_id, scan_id);
   return 1;
 }
 
@@ -90,7 +91,42 @@ int cmd_scan(const Options& options) {
   }
   const std::string scan_id = reply->value("scan_id", "");
   std::cerr << fmt::format("scan {} started\n", scan_id);
-  return follow_events(socket, scan_id, options.as_json, true);
+  return follow_events(socket, scan_id, options.as_json, "scan", [&scan_id](const json& finished) {
+    const auto& sherds = finished["sherds"];
+    if (sherds.empty()) std::cerr << fmt::format("scan {}: no sherds found\n", scan_id);
+    for (const auto& s : sherds) std::cout << s.value("plate", "") << '\n';
+  });
+}
+
+std::string triple(const json& a, const char* format) {
+  return fmt::format(fmt::runtime(format), a.at(0).get<double>(), a.at(1).get<double>(), a.at(2).get<double>());
+}
+
+int cmd_calibrate(const Options& options, const std::string& kind) {
+  if (kind != "turntable") throw sherd::InputError(sherd::station::calibration_refusal(kind));
+  auto socket = sherd::station::connect_unix(socket_path(options));
+  socket.send({{"cmd", "calibrate"}, {"kind", kind}});
+  auto reply = socket.receive();
+  if (!reply || !reply->value("ok", false)) {
+    throw sherd::InputError(reply ? reply->value("error", "calibration refused") : "sherdd closed the connection");
+  }
+  const std::string job_id = reply->value("scan_id", "");
+  std::cerr << fmt::format("turntable calibration {} started: the calibration object must stand on the plate\n",
+                           job_id);
+  return follow_events(socket, job_id, options.as_json, "calibration", [](const json& finished) {
+    const auto& c = finished["calibration"];
+    std::cout << fmt::format(
+        "turntable axis in the scanner frame\n"
+        "  direction  {}  ± {:.4f}°\n"
+        "  point      {} mm  ± {:.4f} mm across, ± {:.4f} mm along (on the plate top)\n"
+        "  RMS        {:.4f} mm of the sphere centres ({} views, {} spheres, {} centres, {} rejected)\n"
+        "  saved to   {}\n",
+        triple(c["axis_direction"], "[{:.6f}, {:.6f}, {:.6f}]"), c.value("direction_sd_deg", 0.0),
+        triple(c["axis_point_mm"], "[{:.3f}, {:.3f}, {:.3f}]"), c.value("point_sd_mm", 0.0),
+        c.value("height_sd_mm", 0.0), c.value("rms_residual_mm", 0.0), c.value("views_used", 0),
+        c.value("spheres_used", 0), c.value("centres_used", 0), c.value("centres_rejected", 0),
+        c.value("file", ""));
+  });
 }
 
 int cmd_status(const Options& options) {
@@ -108,6 +144,14 @@ int cmd_status(const Options& options) {
                            status["processing"].is_null() ? "—" : status["processing"].get<std::string>(),
                            status.value("queued_acquisitions", 0), status.value("queued_processing", 0),
                            status.value("output_dir", ""));
+  const auto& c = status["turntable_calibration"];
+  if (c.value("calibrated", false)) {
+    std::cout << fmt::format("calibration turntable axis ± {:.4f}°, point ± {:.4f} mm, RMS {:.4f} mm ({})\n",
+                             c.value("direction_sd_deg", 0.0), c.value("point_sd_mm", 0.0),
+                             c.value("rms_residual_mm", 0.0), c.value("file", ""));
+  } else {
+    std::cout << fmt::format("calibration {}\n", c.value("note", "none"));
+  }
   return 0;
 }
 
@@ -134,7 +178,7 @@ int cmd_show(const Options& options, const std::string& scan_id, bool wait) {
     if (!reply || !reply->value("ok", false)) {
       throw sherd::InputError(reply ? reply->value("error", "") : "sherdd closed the connection");
     }
-    const int code = follow_events(socket, scan_id, false, false);  // the summary below says it all
+    const int code = follow_events(socket, scan_id, false, "scan", nullptr);  // the summary below says it all
     if (code != 0) return code;
   }
   const auto shown = request(options, {{"cmd", "show"}, {"scan_id", scan_id}});
@@ -228,6 +272,13 @@ int main(int argc, char** argv) {
   auto* show = app.add_subcommand("show", "one scan: views, stages, sherds and measurements");
   show->add_option("SCAN_ID", scan_id, "the scan's id (see `sherdctl jobs`)")->required();
   show->add_flag("--wait", wait, "wait until the scan has finished first");
+  std::string calibration_kind;
+  auto* calibrate = app.add_subcommand("calibrate", "run a calibration procedure through sherdd; results are "
+                                                     "stored in a file and the database and used at once");
+  calibrate->add_option("KIND", calibration_kind, "turntable (the axis, from a scan of the calibration object) "
+                                                   "or scanner (not available yet)")
+      ->required()
+      ->check(CLI::IsMember({"turntable", "scanner"}));
   std::vector<std::string> files;
   std::string out_dir, units = "mm", background = "none";
   auto* process = app.add_subcommand("process", "run the pipeline offline on existing files (no daemon needed)");
@@ -240,6 +291,7 @@ int main(int argc, char** argv) {
 
   try {
     if (*scan) return cmd_scan(options);
+    if (*calibrate) return cmd_calibrate(options, calibration_kind);
     if (app.got_subcommand("status")) return cmd_status(options);
     if (*jobs) return cmd_jobs(options, limit);
     if (*show) return cmd_show(options, scan_id, wait);

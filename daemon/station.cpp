@@ -6,6 +6,10 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+
 namespace sherd::station {
 namespace {
 
@@ -16,12 +20,13 @@ sim::TurntableFault turntable_fault(const std::string& name) {
   return sim::TurntableFault::None;  // the config parser has already rejected anything else
 }
 
-sim::SceneKind scene_kind(const std::string& name) {
-  if (name == "plate") return sim::SceneKind::Plate;
-  if (name == "vessel") return sim::SceneKind::Vessel;
-  if (name == "empty") return sim::SceneKind::Empty;
-  return sim::SceneKind::Frame;
-}
+// Uncalibrated, the nominal pose may be off by a mounting error of this order.
+constexpr double kUncalibratedTiltSdDeg = 0.5;
+constexpr double kUncalibratedTranslationSdMm = 2.0;
+// Floors under a calibration's σ: a fit of 12 views says nothing of the drift of the mount since
+// (temperature, a bump) nor of the printed object's tolerances.
+constexpr double kMinTiltSdDeg = 0.01;
+constexpr double kMinTranslationSdMm = 0.05;
 
 }  // namespace
 
@@ -29,10 +34,40 @@ Pose calibrated_scanner_pose(const config::ScannerSettings& scanner) {
   return sim::look_at_pose(scanner.position_mm, scanner.look_at_mm);
 }
 
+Pose simulated_scanner_pose(const config::StationConfig& config) {
+  return sim::mounted_pose(calibrated_scanner_pose(config.scanner),
+                           {config.simulation.scanner_tilt_error_deg,
+                            config.simulation.scanner_offset_error_mm, config.simulation.seed});
+}
+
+registration::PriorUncertainty prior_uncertainty(
+    const std::optional<calibration::TurntableCalibration>& calibration,
+    const config::TurntableSettings& turntable) {
+  registration::PriorUncertainty prior;
+  prior.angle_sd_deg = turntable.angle_sd_deg;
+  if (!calibration) {
+    prior.tilt_sd_deg = kUncalibratedTiltSdDeg;
+    prior.translation_sd_mm = kUncalibratedTranslationSdMm;
+    return prior;
+  }
+  prior.tilt_sd_deg = std::max(calibration->direction_sd_deg, kMinTiltSdDeg);
+  prior.translation_sd_mm =
+      std::max(std::hypot(calibration->point_sd_mm, calibration->height_sd_mm), kMinTranslationSdMm);
+  return prior;
+}
+
+void apply_turntable_calibration(Station& station, const calibration::TurntableCalibration& calibration,
+                                 const config::StationConfig& config) {
+  station.scanner_to_world = calibration.scanner_to_world();
+  station.turntable_calibration = calibration;
+  station.prior_uncertainty = prior_uncertainty(calibration, config.turntable);
+  station.calibration_note.clear();
+}
+
 sim::SceneSpec scene_spec(const config::SimulationSettings& simulation) {
   sim::SceneSpec spec;
   spec.seed = simulation.seed;
-  spec.kind = scene_kind(simulation.scene);
+  spec.kind = sim::scene_kind_from_string(simulation.scene);
   spec.sherds = simulation.sherds;
   spec.background = simulation.background == "white" ? sim::Background::White : sim::Background::Black;
   return spec;
@@ -49,6 +84,19 @@ Station make_station(const config::StationConfig& config) {
   }
   Station station;
   station.scanner_to_world = calibrated_scanner_pose(config.scanner);
+  station.prior_uncertainty = prior_uncertainty(std::nullopt, config.turntable);
+  const auto& file = config.calibration.turntable_file;
+  std::error_code error;
+  if (!std::filesystem::exists(file, error)) {
+    station.calibration_note = fmt::format(
+        "turntable not calibrated — run sherdctl calibrate turntable (no {})", file.string());
+  } else {
+    try {
+      apply_turntable_calibration(station, calibration::read_turntable_calibration(file), config);
+    } catch (const InputError& e) {
+      station.calibration_note = e.what();
+    }
+  }
 
   const auto& t = config.turntable;
   auto turntable = std::make_unique<sim::SimulatedTurntable>(sim::TurntableModel{
@@ -63,7 +111,7 @@ Station make_station(const config::StationConfig& config) {
   model.fy = c.fy;
   model.cx = c.cx;
   model.cy = c.cy;
-  model.scanner_to_world = station.scanner_to_world;
+  model.scanner_to_world = simulated_scanner_pose(config);  // the physical pose, not the believed one
   model.projector_offset_mm = c.projector_offset_mm;
   model.depth_noise_mm = c.depth_noise_mm;
   model.grazing_limit_deg = c.grazing_limit_deg;
@@ -73,8 +121,16 @@ Station make_station(const config::StationConfig& config) {
   // The simulated scanner images the plate at the turntable's physical angle, which after a
   // stall differs from the commanded one: that is what the station must notice.
   const sim::SimulatedTurntable* plate = turntable.get();
-  station.scanner = std::make_unique<sim::SimulatedScanner>(
-      sim::make_scene(scene_spec(config.simulation)), model, [plate] { return plate->physical_angle(); });
+  const sim::SceneSpec spec = scene_spec(config.simulation);
+  auto scanner = std::make_unique<sim::SimulatedScanner>(sim::make_scene(spec), model,
+                                                         [plate] { return plate->physical_angle(); });
+  sim::SimulatedScanner* simulated = scanner.get();
+  station.place_calibration_object = [simulated, spec](bool on_plate) {
+    sim::SceneSpec now = spec;
+    if (on_plate) now.kind = sim::SceneKind::Calibration;
+    simulated->set_scene(sim::make_scene(now));
+  };
+  station.scanner = std::move(scanner);
   station.turntable = std::move(turntable);
   return station;
 }

@@ -101,6 +101,17 @@ CREATE TABLE events (
 );
 CREATE INDEX events_by_scan ON events(scan_id);
 )sql",
+    // 2: calibration results (the turntable axis, later the scanner's intrinsics), newest last.
+    R"sql(
+CREATE TABLE calibrations (
+  id         INTEGER PRIMARY KEY,
+  created_at TEXT NOT NULL,
+  kind       TEXT NOT NULL,
+  scan_id    TEXT REFERENCES scans(id) ON DELETE SET NULL,
+  result     TEXT NOT NULL
+);
+CREATE INDEX calibrations_by_kind ON calibrations(kind, id);
+)sql",
 };
 constexpr int kSchemaVersion = static_cast<int>(std::size(kMigrations));
 
@@ -567,6 +578,28 @@ std::int64_t Store::event_count(const std::string& scan_id) const {
   stmt.bind(none_if_empty(scan_id));
   stmt.step();
   return stmt.integer(0);
+}
+
+std::int64_t Store::add_calibration(const std::string& kind, const std::string& scan_id,
+                                    const nlohmann::json& result) {
+  std::lock_guard lock(mutex_);
+  Statement(db_, file_,
+            "INSERT INTO calibrations (created_at, kind, scan_id, result) VALUES (?1, ?2, ?3, ?4)",
+            fmt::format("record a {} calibration", kind))
+      .bind(utc_now_iso(), kind, none_if_empty(scan_id), result)
+      .run();
+  return sqlite3_last_insert_rowid(db_);
+}
+
+std::optional<CalibrationRecord> Store::latest_calibration(const std::string& kind) const {
+  std::lock_guard lock(mutex_);
+  Statement stmt(db_, file_,
+                 "SELECT id, created_at, kind, scan_id, result FROM calibrations WHERE kind = ?1 "
+                 "ORDER BY id DESC LIMIT 1",
+                 fmt::format("read the latest {} calibration", kind));
+  stmt.bind(kind);
+  if (!stmt.step()) return std::nullopt;
+  return CalibrationRecord{stmt.integer(0), stmt.text(1), stmt.text(2), stmt.text(3), stmt.json(4)};
 }
 
 }  // namespace sherd::db

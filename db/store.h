@@ -1,7 +1,7 @@
-// The station's SQLite store: scans, views, sherds, measurements, artifacts, stage timings and
-// log events. Versioned migrations (PRAGMA user_version), WAL, foreign keys, bound parameters
-// only. Thread-safe: one connection behind a mutex. The store never logs (its log sink writes
-// through it).
+// The station's SQLite store: scans, views, sherds, measurements, artifacts, stage timings,
+// calibrations and log events. Versioned migrations (PRAGMA user_version), WAL, foreign keys,
+// bound parameters only. Thread-safe: one connection behind a mutex. The store never logs (its
+// log sink writes through it).
 #pragma once
 
 #include <nlohmann/json.hpp>
@@ -58,6 +58,15 @@ struct SherdRecord {
   nlohmann::json summary;  // the sherd.json document
 };
 
+// One calibration result (kind "turntable", …), as made by a calibration job.
+struct CalibrationRecord {
+  std::int64_t id = 0;
+  std::string created_at;  // ISO 8601 UTC
+  std::string kind;
+  std::string scan_id;     // the calibration scan it was computed from ("" if none)
+  nlohmann::json result;   // the result document (e.g. sherdscan.turntable_calibration/1)
+};
+
 class Store {
  public:
   // Opens (creating if needed) and migrates. Throws sherd::InputError naming the file.
@@ -98,6 +107,11 @@ class Store {
   void add_stage(const std::string& scan_id, const std::string& stage, double duration_ms,
                  const nlohmann::json& figures);
   nlohmann::json stages(const std::string& scan_id) const;  // array of {stage, duration_ms, figures}
+
+  // Calibrations: every result is kept (history); the latest of a kind is the one in force.
+  std::int64_t add_calibration(const std::string& kind, const std::string& scan_id,
+                               const nlohmann::json& result);
+  std::optional<CalibrationRecord> latest_calibration(const std::string& kind) const;
 
   // Log events (written by the spdlog sink).
   void add_event(const std::string& time, const std::string& scan_id, const std::string& level,

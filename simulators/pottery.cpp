@@ -1,6 +1,7 @@
 #include "simulators/pottery.h"
 
 #include "core/errors.h"
+#include "processing/calibration/turntable_calibration.h"
 #include "simulators/random.h"
 #include "simulators/vessel.h"
 
@@ -346,6 +347,48 @@ void place_vessel(Scene& scene, Rng& master) {
   scene.objects.push_back(make_object(truth.id, 1, std::move(placed)));
 }
 
+// The calibration object (calibration::kCalibrationObject), matte light grey: the disc, and each
+// sphere with its post as one surface of revolution about the post's axis (the post's section
+// runs up to where it meets the sphere, then the sphere's arc over the top). The profile is
+// sampled finely so that the faceting of the meshed spheres stays far below the scanner's noise
+// (sagitta < 0.005 mm), which the estimator's accuracy tests rely on.
+void place_calibration_object(Scene& scene, Rng& master) {
+  Rng rng = master.fork();
+  const auto& object = calibration::kCalibrationObject;
+  const Rgb8 grey{200, 200, 196};
+  auto uniform_colour = [&](Mesh mesh) {
+    mesh.vertices.colours.assign(mesh.vertices.size(), grey);  // matte, no mottling
+    return mesh;
+  };
+  const double R = object.disc_radius_mm, t = object.disc_thickness_mm;
+  Mesh all = uniform_colour(revolve_section({{0, 0}, {R, 0}, {R, 0}, {R, t}, {R, t}, {0, t}},
+                                            std::vector<Rgb8>(6, grey), rng));
+  for (const auto& sphere : object.spheres) {
+    const double r = sphere.radius_mm, p = object.post_radius_mm;
+    const double zc = t + sphere.height_mm;
+    const double join = std::asin(p / r);  // polar angle (from the bottom) where the post meets
+    std::vector<Point2> section{{0, t}, {p, t}, {p, t}};
+    constexpr int kArcSamples = 120;
+    for (int i = 0; i <= kArcSamples; ++i) {
+      const double polar = join + (kPi - join) * i / kArcSamples;
+      section.emplace_back(i == kArcSamples ? 0.0 : r * std::sin(polar), zc - r * std::cos(polar));
+    }
+    Mesh pin = uniform_colour(revolve_section(section, std::vector<Rgb8>(section.size(), grey), rng));
+    const double a = sphere.azimuth_deg * kPi / 180.0;
+    Pose at = Pose::Identity();
+    at.translation() = Vec3d(sphere.distance_mm * std::cos(a), sphere.distance_mm * std::sin(a), 0);
+    pin.vertices.transform(at);
+    append_mesh(all, pin);
+  }
+  // Put down by hand: near the centre, turned any way.
+  Pose placement = Pose::Identity();
+  placement.rotate(Eigen::AngleAxisd(rng.uniform(0.0, 2 * kPi), Vec3d::UnitZ()));
+  placement.pretranslate(Vec3d(rng.uniform(-8.0, 8.0), rng.uniform(-8.0, 8.0), 0.0));
+  all.vertices.transform(placement);
+  scene.calibration_placement = placement;
+  scene.objects.push_back(make_object("calibration_object", 0, std::move(all)));
+}
+
 }  // namespace
 
 const char* to_string(SceneKind kind) {
@@ -354,6 +397,7 @@ const char* to_string(SceneKind kind) {
     case SceneKind::Plate: return "plate";
     case SceneKind::Vessel: return "vessel";
     case SceneKind::Empty: return "empty";
+    case SceneKind::Calibration: return "calibration";
   }
   return "unknown";
 }
@@ -363,11 +407,12 @@ const char* to_string(Background background) {
 }
 
 SceneKind scene_kind_from_string(const std::string& name) {
-  for (auto kind : {SceneKind::Frame, SceneKind::Plate, SceneKind::Vessel, SceneKind::Empty}) {
+  for (auto kind : {SceneKind::Frame, SceneKind::Plate, SceneKind::Vessel, SceneKind::Empty,
+                    SceneKind::Calibration}) {
     if (name == to_string(kind)) return kind;
   }
   throw InputError(fmt::format(
-      "unknown scene kind '{}': expected frame, plate, vessel or empty", name));
+      "unknown scene kind '{}': expected frame, plate, vessel, empty or calibration", name));
 }
 
 Background background_from_string(const std::string& name) {
@@ -396,6 +441,7 @@ Scene make_scene(const SceneSpec& spec) {
     case SceneKind::Plate: place_on_plate(scene, master); break;
     case SceneKind::Vessel: place_vessel(scene, master); break;
     case SceneKind::Empty: place_empty_frame(scene, bg); break;
+    case SceneKind::Calibration: place_calibration_object(scene, master); break;
   }
   return scene;
 }

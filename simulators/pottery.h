@@ -9,12 +9,15 @@
 //   Plate  — sherds lying on the plate, outer face up or down, not touching;
 //   Vessel — one complete vessel (bowl, plate, beaker or jar, ≤ 185 mm tall to stay in the
 //            default scanner's view) standing near the plate centre;
-//   Empty  — the plate and (when sherds > 0) the empty frame.
+//   Empty  — the plate and (when sherds > 0) the empty frame;
+//   Calibration — the turntable calibration object (calibration::kCalibrationObject: a disc with
+//            four spheres on posts) put down roughly centred, as an operator would; no truth
+//            sherds (its truth is its description plus the placement in `calibration_placement`).
 // A frame or plate tray of k sherds holds ⌈k/2⌉ rim sherds, max(1, k/4) base sherds from k = 3 on
 // and body sherds in the rest, in an order shuffled by the seed (sizes: see break_sherd).
 //
 // truth.json (schema "sherdscan.truth/1"), the contract read by end-to-end tests and benchmarks:
-//   schema, seed, scene ("frame"|"plate"|"vessel"|"empty"), background ("black"|"white"),
+//   schema, seed, scene ("frame"|"plate"|"vessel"|"empty"|"calibration"), background ("black"|"white"),
 //   units: "mm", angles in degrees,
 //   plate: {radius_mm, top_z_mm, colour: [r, g, b]}   (colour of plate and frame: the background)
 //   sherds: [ one per sherd (or the vessel), in placement order:
@@ -52,7 +55,7 @@
 
 namespace sherd::sim {
 
-enum class SceneKind { Frame, Plate, Vessel, Empty };
+enum class SceneKind { Frame, Plate, Vessel, Empty, Calibration };
 enum class Background { Black, White };
 
 inline constexpr double kPlateRadiusMm = 150.0;
@@ -60,7 +63,7 @@ inline constexpr int kMaxSherds = 10;  // what a 300 mm plate holds without over
 
 const char* to_string(SceneKind kind);
 const char* to_string(Background background);
-// Parse "frame"|"plate"|"vessel"|"empty" and "black"|"white"; InputError otherwise.
+// Parse "frame"|"plate"|"vessel"|"empty"|"calibration" and "black"|"white"; InputError otherwise.
 SceneKind scene_kind_from_string(const std::string& name);
 Background background_from_string(const std::string& name);
 Rgb8 background_colour(Background background);
@@ -106,6 +109,9 @@ struct Scene {
   SceneSpec spec;
   std::vector<SceneObject> objects;
   std::vector<SherdTruth> truth;
+  // Calibration scene: the object's pose on the plate (its frame: origin at the disc's centre on
+  // the plate, z up) at turntable angle 0. Identity for the other scenes.
+  Pose calibration_placement = Pose::Identity();
 };
 
 // Throws InputError for a sherd count outside 0…kMaxSherds.

@@ -13,8 +13,8 @@ int main(int argc, char** argv) {
   std::string scene = "frame", background = "black", out;
   int sherds = 4;
   std::uint64_t seed = 42;
-  app.add_option("--scene", scene, "frame | plate | vessel | empty")
-      ->check(CLI::IsMember({"frame", "plate", "vessel", "empty"}))
+  app.add_option("--scene", scene, "frame | plate | vessel | empty | calibration")
+      ->check(CLI::IsMember({"frame", "plate", "vessel", "empty", "calibration"}))
       ->capture_default_str();
   app.add_option("--sherds", sherds, "number of sherds (frame, plate; empty: frame slots)")
       ->check(CLI::Range(0, sherd::sim::kMaxSherds))

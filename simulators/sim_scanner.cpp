@@ -118,6 +118,24 @@ Pose look_at_pose(const Vec3d& eye, const Vec3d& target) {
   return pose;
 }
 
+Pose mounted_pose(const Pose& nominal, const MountingError& error) {
+  if (!(std::isfinite(error.tilt_deg) && std::isfinite(error.offset_mm))) {
+    throw InputError("simulated scanner mounting error: tilt and offset must be finite numbers");
+  }
+  Rng rng(error.seed ^ 0x6D6F756E74ULL);  // its own stream: the scene's draws stay unchanged
+  // Uniform directions on the unit sphere (normalised Gaussian triples).
+  auto direction = [&rng] {
+    const Vec3d v(rng.normal(), rng.normal(), rng.normal());
+    return v.normalized();
+  };
+  const Vec3d tilt_axis = direction(), shift = direction();
+  Pose pose = nominal;
+  pose.linear() = Eigen::AngleAxisd(error.tilt_deg * std::numbers::pi / 180.0, tilt_axis) *
+                  nominal.linear();
+  pose.translation() += error.offset_mm * shift;
+  return pose;
+}
+
 ScannerModel default_station_scanner() {
   ScannerModel model;
   model.scanner_to_world = look_at_pose({0.0, -420.0, 260.0}, {0.0, 0.0, 50.0});

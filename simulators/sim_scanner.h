@@ -29,6 +29,18 @@ struct ScannerModel {
 // Throws InputError when eye == target or the view is straight up/down (no "up" then).
 Pose look_at_pose(const Vec3d& eye, const Vec3d& target);
 
+// How far a physically mounted scanner is off its nominal (configured) pose: a rotation of
+// `tilt_deg` about an axis through its optical centre and a shift of `offset_mm` of that centre,
+// both in directions drawn from `seed`. The station believes the nominal pose until calibrated.
+struct MountingError {
+  double tilt_deg = 0.0;
+  double offset_mm = 0.0;
+  std::uint64_t seed = 1;
+};
+
+// The physical pose of a scanner whose nominal pose is `nominal`. Zero error gives `nominal`.
+Pose mounted_pose(const Pose& nominal, const MountingError& error);
+
 // The default station's scanner (config defaults): 640×480, fx = fy = 800, camera at
 // (0, −420, 260) mm looking at (0, 0, 50) mm; noise model as in ScannerModel.
 ScannerModel default_station_scanner();
@@ -39,6 +51,10 @@ class SimulatedScanner : public drivers::Scanner {
   SimulatedScanner(Scene scene, ScannerModel model, std::function<double()> plate_angle);
   std::string describe() const override;
   OrganisedView capture() override;
+
+  // Replaces what lies on the plate (e.g. the calibration object for a calibration scan). Not
+  // concurrently with capture().
+  void set_scene(Scene scene) { scene_ = std::move(scene); }
 
   // Ground-truth label of every cell of the last capture: k = scene.truth[k-1] for a valid cell
   // on sherd (or vessel) k; 0 for the background and for cells without a measurement.

@@ -1,7 +1,14 @@
-// Fusing the turntable views of one scan into one model in the world (= turntable) frame.
-// Each view is placed by the turntable prior (calibrated scanner pose and encoder angle) and
-// refined by point-to-plane ICP against the union of the views already placed. Directions the
-// geometry cannot constrain (the rotation of a wheel-made pot about its own axis) keep the prior.
+// Fusing the turntable views of one scan into one consistent set of poses in the world
+// (= turntable) frame, in two stages:
+//  1. Pairwise: every pair of views that overlaps at the turntable prior (neighbours, the loop
+//     closure last → first, and any other pair with enough overlap) is refined by point-to-plane
+//     ICP — plus a photometric term where the views carry colour — on downsampled clouds with
+//     trimmed correspondences. Directions the pair's equations cannot constrain (the rotation of a
+//     wheel-made pot about its own axis) keep the prior instead of drifting.
+//  2. Global: all views in one pose graph — each pair's result as a relative-pose edge weighted by
+//     its information matrix, each view's turntable prior as a unary factor weighted by the prior's
+//     uncertainty — solved by Gauss-Newton, so the error is spread over the loop rather than
+//     accumulated; edges inconsistent with the rest are dropped.
 #pragma once
 
 #include "core/types.h"
@@ -21,21 +28,36 @@ struct ViewInput {
   Pose prior = Pose::Identity();
 };
 
+// How well the turntable prior places a view (standard deviations): the encoder for the rotation
+// about the turntable axis, the turntable calibration for the axis's direction and position.
+// Where the geometry cannot see a direction, the prior holds it with this weight.
+struct PriorUncertainty {
+  double angle_sd_deg = 0.1;       // rotation about the turntable (world z) axis
+  double tilt_sd_deg = 0.05;       // rotation about the horizontal world axes
+  double translation_sd_mm = 0.2;  // position
+};
+
 struct Params {
   bool refine_with_icp = true;
+  // Add a photometric term where both views of a pair have colour (Park, Zhou & Koltun, ICCV
+  // 2017): the clay's mottling could fix the rotation about a pot's axis that its shape cannot.
+  // Off by default: measured (bench/registration), it does not yet lift that rotation above the
+  // degeneracy threshold on simulated vessels and it biases trays (0.012° against 0.003°).
+  bool use_colour = false;
+  // A pair of views becomes an edge when this share of the source's points has a neighbour in the
+  // target at the prior (within the coarse correspondence distance).
+  double min_edge_overlap = 0.1;
+  // Besides its neighbours, each view keeps at most this many further edges (the best overlaps).
+  int max_extra_edges_per_view = 2;
   double voxel_mm = 1.0;
   double max_correspondence_mm = 3.0;
   int max_iterations = 40;
   double max_correction_deg = 3.0;  // correction from the prior beyond these is flagged
   double max_correction_mm = 5.0;
-  float mesh_max_edge_mm = 3.0f;  // organised triangulation: longer edges are depth jumps
-  // A view whose share of points near the placed views (at its prior, within
-  // max_correspondence_mm + max_correction_mm) is below this is flagged "no_overlap".
-  double min_overlap = 0.1;
   // ICP iterates on a fixed random sample of at most this many of the view's voxel points
   // (point-to-plane needs far fewer than a full view to pin six degrees of freedom); the
   // figures in ViewResult are measured on all of them.
-  int icp_max_points = 10000;
+  int icp_max_points = 4000;
   // Directions of the point-to-plane normal equations whose eigenvalue is below
   // degenerate_eigenvalue_ratio × the largest (rotations scaled by the view's RMS radius, so that
   // 1 rad ≈ that many mm) are degenerate: each update leaves the view's rotation about such a
@@ -46,7 +68,7 @@ struct Params {
   double degenerate_eigenvalue_ratio = 0.005;
 };
 
-// A direction of a view's pose that the geometry could not constrain, in the last ICP iteration.
+// A direction of a pose that the geometry could not constrain, in the last ICP iteration.
 struct DegenerateDirection {
   // The world axis this direction mostly is: "rot_x", "rot_y", "rot_z" (rotation about an axis
   // through the view's centroid) or "trans_x", "trans_y", "trans_z".
@@ -58,41 +80,60 @@ struct DegenerateDirection {
   double eigenvalue_ratio = 0.0;  // its eigenvalue over the largest one
 };
 
+// One pair of views: `source` registered onto `target` (both at their priors).
+struct EdgeResult {
+  int target = 0, source = 0;
+  bool neighbours = false;  // consecutive turntable stops (or the loop closure last → first)
+  double overlap_at_prior = 0.0;
+  // "accepted", "implausible_correction" (ICP's relative correction beyond the limits),
+  // "not_converged" (ICP lost its correspondences), "inconsistent" (dropped by the global solve:
+  // it disagrees with the other edges and the priors)
+  std::string status;
+  double rms_mm = 0.0;    // point-to-plane RMS at the pair's ICP result
+  double overlap = 0.0;   // share of the source's points with a correspondence there
+  int iterations = 0;
+  bool used_colour = false;
+  double correction_deg = 0.0;  // the source's correction relative to the target, from the prior
+  double correction_mm = 0.0;   // (at the source's centroid)
+  std::vector<DegenerateDirection> degenerate;
+};
+
 struct ViewResult {
   Pose pose = Pose::Identity();  // final scanner → world
-  double rms_mm = 0.0;           // point-to-plane RMS over accepted correspondences
+  // Measured at the final poses against the views it shares accepted edges with.
+  double rms_mm = 0.0;           // point-to-plane RMS over the correspondences
   double overlap = 0.0;          // share of the view's points with a correspondence
-  int iterations = 0;
-  double correction_deg = 0.0;  // rotation between prior and final pose
-  double correction_mm = 0.0;   // translation between prior and final pose (world origin)
-  // What ICP proposed, kept even when rejected ("implausible_correction"): total rotation,
-  // its part about the world z axis (the turntable axis, where near-symmetric pots let ICP slide),
-  // and the displacement of the world origin.
-  double proposed_correction_deg = 0.0;
-  double proposed_about_z_deg = 0.0;
-  double proposed_correction_mm = 0.0;
-  bool refined = false;  // false: the prior was kept
+  int iterations = 0;            // ICP iterations over the view's edges
+  double correction_deg = 0.0;   // rotation between prior and final pose
+  double correction_mm = 0.0;    // displacement of the view's centroid between prior and final pose
+  double about_z_deg = 0.0;      // the correction's part about the world z (turntable) axis, signed
+  // Standard deviations of the final pose from the global solve: rotation about the turntable
+  // axis, tilt, translation of the view's centroid.
+  double angle_sd_deg = 0.0, tilt_sd_deg = 0.0, translation_sd_mm = 0.0;
   double rms_radius_mm = 0.0;  // RMS distance of the view's points from their centroid
-  // With the handling on, the view keeps the prior's rotation about each "rot_*" direction's axis
-  // and its translation along each "trans_*" one.
+  int edges = 0;               // accepted edges
+  // The fused model takes this view: false for "empty", "no_overlap", "implausible_correction" and
+  // "not_converged" views, which stay at their prior and are left out rather than merged blindly.
+  bool merged = false;
+  // Directions that none of the view's accepted edges constrains: held by the turntable prior.
   std::vector<DegenerateDirection> degenerate;
-  // "reference" (first non-empty view: it anchors the world frame, kept at its prior),
-  // "empty" (no valid cell), "no_overlap" (too few correspondences with the placed views),
-  // "implausible_correction" (ICP's correction beyond max_correction_deg/mm: prior kept),
-  // "not_converged" (ICP lost its correspondences on the way: prior kept),
-  // "degenerate:<name>" for each degenerate direction (refined in the other directions only).
+  // "empty" (no valid cell), "no_overlap" (no other view overlaps it at the prior),
+  // "implausible_correction" (every edge's correction beyond max_correction_deg/mm, or the global
+  // solve moved it that far from its prior), "not_converged" (ICP lost its correspondences on all
+  // its edges), "degenerate:<name>" for each degenerate direction (refined in the others only).
   std::vector<std::string> flags;
 };
 
 struct Result {
   std::vector<ViewResult> views;
-  Mesh fused;  // all views in the world frame: organised triangulations merged, normals, colours
+  std::vector<EdgeResult> edges;
+  int graph_iterations = 0;
 };
 
-// Views are placed in the given order; rms_mm and overlap are measured at the final pose against
-// the views placed before it (within max_correspondence_mm). Throws sherd::InputError for a
-// malformed view (sizes that do not match width × height, a valid cell that is not finite), a
-// non-finite prior or non-positive parameters.
-Result register_views(const std::vector<ViewInput>& views, const Params& params);
+// Views are in turntable order (view i and i + 1 are neighbours, the last closes the loop onto the
+// first). Throws sherd::InputError for a malformed view (sizes that do not match width × height, a
+// valid cell that is not finite), a non-finite prior, non-positive parameters or uncertainties.
+Result register_views(const std::vector<ViewInput>& views, const PriorUncertainty& prior_uncertainty,
+                      const Params& params);
 
 }  // namespace sherd::registration

@@ -85,6 +85,12 @@ TEST_F(StationConfigTest, ShippedFileHasTheDocumentedDefaultStation) {
   EXPECT_EQ(c.render.materials_file, fs::path(SHERD_SOURCE_DIR) / "config" / "materials.xml");
   EXPECT_TRUE(fs::exists(c.render.materials_file));
   EXPECT_EQ(c.render.section_side, "right");
+  // A simulated scanner mounted exactly as configured; the encoder good to 0.1°.
+  EXPECT_EQ(c.simulation.scanner_tilt_error_deg, 0.0);
+  EXPECT_EQ(c.simulation.scanner_offset_error_mm, 0.0);
+  EXPECT_EQ(c.turntable.angle_sd_deg, 0.1);
+  EXPECT_EQ(c.calibration.views, 12);
+  EXPECT_EQ(c.calibration.turntable_file, fs::current_path() / "var" / "calibration" / "turntable.json");
 }
 
 // The shipped file is the documentation: every setting must be written out in it.
@@ -97,8 +103,11 @@ TEST_F(StationConfigTest, ShippedFileWritesOutEverySetting) {
         "projector_offset_mm", "depth_noise_mm", "grazing_limit_deg", "dropout_fraction"}},
       {"turntable",
        {"driver", "steps_per_revolution", "speed_deg_s", "acceleration_deg_s2", "time_scale",
-        "fault", "fault_at_move"}},
-      {"simulation", {"seed", "scene", "sherds", "background"}},
+        "fault", "fault_at_move", "angle_sd_deg"}},
+      {"simulation",
+       {"seed", "scene", "sherds", "background", "scanner_tilt_error_deg",
+        "scanner_offset_error_mm"}},
+      {"calibration", {"views"}},
       {"registration",
        {"refine_with_icp", "voxel_mm", "max_correspondence_mm", "max_iterations",
         "max_correction_deg", "max_correction_mm"}},
@@ -118,6 +127,7 @@ TEST_F(StationConfigTest, ShippedFileWritesOutEverySetting) {
   const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   EXPECT_NE(text.find("# output_dir = "), std::string::npos);
   EXPECT_NE(text.find("# socket = "), std::string::npos);
+  EXPECT_NE(text.find("# turntable_file = "), std::string::npos);
 }
 
 TEST_F(StationConfigTest, MissingKeysTakeTheHeaderDefaults) {
@@ -150,7 +160,12 @@ fault_at_move = 3
 time_scale = 0
 [simulation]
 seed = 123456789012
-scene = "vessel"
+scene = "calibration"
+scanner_tilt_error_deg = 1.5
+scanner_offset_error_mm = 3
+[calibration]
+views = 24
+turntable_file = "cal/tt.json"
 [registration]
 refine_with_icp = false
 [render]
@@ -165,7 +180,11 @@ section_side = "left"
   EXPECT_EQ(c.turntable.fault_at_move, 3);
   EXPECT_EQ(c.turntable.time_scale, 0.0);
   EXPECT_EQ(c.simulation.seed, 123456789012u);
-  EXPECT_EQ(c.simulation.scene, "vessel");
+  EXPECT_EQ(c.simulation.scene, "calibration");
+  EXPECT_EQ(c.simulation.scanner_tilt_error_deg, 1.5);
+  EXPECT_EQ(c.simulation.scanner_offset_error_mm, 3.0);
+  EXPECT_EQ(c.calibration.views, 24);
+  EXPECT_EQ(c.calibration.turntable_file, fs::current_path() / "cal" / "tt.json");
   EXPECT_FALSE(c.registration.refine_with_icp);
   EXPECT_EQ(c.render.section_side, "left");
 }
@@ -191,6 +210,7 @@ materials_file = "looks/materials.xml"
   EXPECT_EQ(c.paths.log_file, fs::path("/var/lib/other/sherdd.log"));
   EXPECT_EQ(c.paths.socket, fs::path("/var/lib/other/sherdd.sock"));
   EXPECT_EQ(c.paths.output_dir, fs::path("/srv/plates"));  // explicit: kept
+  EXPECT_EQ(c.calibration.turntable_file, fs::path("/var/lib/other/calibration/turntable.json"));
 }
 
 TEST_F(StationConfigTest, UnknownKeyNamesFileLineAndTheValidKeys) {
@@ -202,7 +222,7 @@ TEST_F(StationConfigTest, UnknownKeyNamesFileLineAndTheValidKeys) {
 TEST_F(StationConfigTest, UnknownTableNamesFileAndLine) {
   EXPECT_EQ(error_of("[scan]\nviews = 8\n\n[scaner]\nwidth = 640\n"),
             file() + ":4: scaner: expected one of the tables station, scan, scanner, turntable, "
-                     "simulation, registration, segmentation, render, got an unknown table "
+                     "simulation, calibration, registration, segmentation, render, got an unknown table "
                      "[scaner] — every setting belongs to one of these tables");
 }
 
@@ -231,6 +251,8 @@ TEST_F(StationConfigTest, ValueOutOfRangeNamesTheRange) {
             file() + ":2: registration.voxel_mm: expected a number above 0 up to 100, got -0.5");
   EXPECT_EQ(error_of("[scanner]\ndepth_noise_mm = nan\n"),
             file() + ":2: scanner.depth_noise_mm: expected a number from 0 to 10, got nan");
+  EXPECT_EQ(error_of("[calibration]\nviews = 2\n"),
+            file() + ":2: calibration.views: expected an integer from 3 to 360, got 2");
   EXPECT_EQ(error_of("[simulation]\nseed = -1\n"),
             file() + ":2: simulation.seed: expected an integer of at least 0, got -1");
   // Ranges that depend on another key.

@@ -66,12 +66,13 @@ class StoreTest : public TempDirTest {
 TEST_F(StoreTest, MigratesAnEmptyFileToTheCurrentSchema) {
   {
     Store store(db_file());
-    EXPECT_EQ(store.schema_version(), 1);
+    EXPECT_EQ(store.schema_version(), 2);
   }
-  EXPECT_EQ(query_int(db_file(), "PRAGMA user_version"), 1);
+  EXPECT_EQ(query_int(db_file(), "PRAGMA user_version"), 2);
   EXPECT_EQ(query_text(db_file(), "PRAGMA journal_mode"), "wal");
   for (const char* table :
-       {"scans", "views", "sherds", "measurements", "artifacts", "stages", "events"}) {
+       {"scans", "views", "sherds", "measurements", "artifacts", "stages", "events",
+        "calibrations"}) {
     EXPECT_EQ(query_int(db_file(), std::string("SELECT count(*) FROM sqlite_master WHERE "
                                                "type = 'table' AND name = '") +
                                        table + "'"),
@@ -88,9 +89,50 @@ TEST_F(StoreTest, ReopeningKeepsTheDataAndDoesNotMigrateAgain) {
     store.add_view(view(id, 0));
   }
   Store store(db_file());
-  EXPECT_EQ(store.schema_version(), 1);
+  EXPECT_EQ(store.schema_version(), 2);
   ASSERT_TRUE(store.scan(id).has_value());
   EXPECT_EQ(store.views(id).size(), 1u);
+}
+
+// A station database from before calibrations (schema 1) gains the table and keeps its scans.
+TEST_F(StoreTest, MigratesAVersionOneDatabaseKeepingItsScans) {
+  std::string id;
+  {
+    Store store(db_file());
+    id = store.create_scan("station", 8, {{"views", 8}}, "/tmp/out");
+  }
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open(db_file().c_str(), &db), SQLITE_OK);
+  ASSERT_EQ(sqlite3_exec(db, "DROP TABLE calibrations; PRAGMA user_version = 1", nullptr, nullptr, nullptr),
+            SQLITE_OK);
+  sqlite3_close(db);
+  Store store(db_file());
+  EXPECT_EQ(store.schema_version(), 2);
+  EXPECT_TRUE(store.scan(id).has_value());
+  EXPECT_FALSE(store.latest_calibration("turntable").has_value());
+  store.add_calibration("turntable", id, {{"rms_residual_mm", 0.03}});
+  EXPECT_EQ(store.latest_calibration("turntable")->scan_id, id);
+}
+
+TEST_F(StoreTest, TheLatestCalibrationOfAKindIsTheOneInForce) {
+  Store store(db_file());
+  const auto id = store.create_scan("calibration", 12, {{"views", 12}}, "/tmp/out");
+  EXPECT_FALSE(store.latest_calibration("turntable").has_value());
+  const auto first = store.add_calibration("turntable", id, {{"point_sd_mm", 0.5}});
+  const auto second = store.add_calibration("turntable", "", {{"point_sd_mm", 0.25}});
+  store.add_calibration("scanner", "", {{"fx", 801.5}});
+  EXPECT_GT(second, first);
+  const auto latest = store.latest_calibration("turntable");
+  ASSERT_TRUE(latest.has_value());
+  EXPECT_EQ(latest->id, second);
+  EXPECT_EQ(latest->kind, "turntable");
+  EXPECT_EQ(latest->scan_id, "");
+  EXPECT_EQ(latest->result["point_sd_mm"], 0.25);
+  EXPECT_EQ(latest->created_at.size(), std::string("2024-05-01T12:34:56.789Z").size());
+  EXPECT_EQ(store.latest_calibration("scanner")->result["fx"], 801.5);
+  EXPECT_EQ(query_int(db_file(), "SELECT count(*) FROM calibrations WHERE kind = 'turntable'"), 2);
+  // A calibration of a scan that does not exist is refused, naming the database.
+  EXPECT_THROW(store.add_calibration("turntable", "no-such-scan", {{"x", 1}}), InputError);
 }
 
 TEST_F(StoreTest, RefusesADatabaseNewerThanTheCode) {

@@ -79,6 +79,16 @@ ProcessResult run(const std::vector<std::string>& argv, std::chrono::seconds tim
   return result;
 }
 
+TestStation::TestStation(const std::map<std::string, std::string>& overrides) {
+  config_file = dir.path() / "station.toml";
+  data = dir.path() / "data";
+  std::ofstream(config_file) << station_config_with(overrides);
+  std::filesystem::copy_file(std::filesystem::path(SHERD_SOURCE_DIR) / "config" / "materials.xml",
+                             dir.path() / "materials.xml");
+  config = config::load_station_config(config_file);
+  config::set_data_dir(config, data);
+}
+
 std::string station_config_with(const std::map<std::string, std::string>& overrides) {
   std::istringstream in(slurp(std::filesystem::path(SHERD_SOURCE_DIR) / "config" / "station.toml"));
   std::map<std::string, bool> used;

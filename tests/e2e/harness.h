@@ -2,6 +2,8 @@
 // build tree, in a temporary station directory, talking over the real Unix socket.
 #pragma once
 
+#include "config/station_config.h"
+
 #include <sys/types.h>
 
 #include <chrono>
@@ -36,6 +38,16 @@ class TempDir {
 
  private:
   std::filesystem::path path_;
+};
+
+// A station directory: the shipped config with `overrides`, materials.xml beside it (where the
+// config finds it), and the parsed config pointing at its own data directory.
+struct TestStation {
+  TempDir dir;
+  std::filesystem::path config_file, data;
+  config::StationConfig config;
+
+  explicit TestStation(const std::map<std::string, std::string>& overrides);
 };
 
 // sherdd running on a station directory.

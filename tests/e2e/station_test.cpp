@@ -51,23 +51,6 @@ unsigned png_pixels_per_metre(const std::filesystem::path& file) {
 
 Vec3d vec(const nlohmann::json& a) { return {a[0].get<double>(), a[1].get<double>(), a[2].get<double>()}; }
 
-struct TestStation {
-  TempDir dir;
-  std::filesystem::path config_file, data;
-  config::StationConfig config;
-
-  explicit TestStation(const std::map<std::string, std::string>& overrides) {
-    config_file = dir.path() / "station.toml";
-    data = dir.path() / "data";
-    std::ofstream(config_file) << station_config_with(overrides);
-    // materials.xml is found beside the config file
-    std::filesystem::copy_file(std::filesystem::path(SHERD_SOURCE_DIR) / "config" / "materials.xml",
-                               dir.path() / "materials.xml");
-    config = config::load_station_config(config_file);
-    config::set_data_dir(config, data);
-  }
-};
-
 TEST(Station, ScanGivesEveryTruthSherdAPlateAndMeasurementsNearTruth) {
   TestStation station(std::map<std::string, std::string>{{"turntable.time_scale", "0.05"}});
   Daemon daemon(station.config_file, station.data);
