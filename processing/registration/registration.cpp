@@ -1,7 +1,5 @@
 #include "processing/registration/registration.h"
 
-#include "core/errors.h"
-
 #include <fmt/format.h>
 #include <pcl/features/normal_3d.h>
 #include <pcl/filters/voxel_grid.h>
@@ -12,7 +10,6 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <Eigen/QR>
-
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -20,6 +17,8 @@
 #include <numbers>
 #include <numeric>
 #include <random>
+
+#include "core/errors.h"
 
 namespace sherd::registration {
 
@@ -58,10 +57,12 @@ void check_input(const std::vector<ViewInput>& views, const PriorUncertainty& pr
   }
   if (!(prior.angle_sd_deg > 0) || !(prior.tilt_sd_deg > 0) || !(prior.translation_sd_mm > 0) ||
       !std::isfinite(prior.angle_sd_deg + prior.tilt_sd_deg + prior.translation_sd_mm)) {
-    throw InputError(fmt::format(
-        "registration: the turntable prior's uncertainty must be positive and finite (angle {} deg, "
-        "tilt {} deg, translation {} mm); check the turntable calibration and turntable.angle_sd_deg",
-        prior.angle_sd_deg, prior.tilt_sd_deg, prior.translation_sd_mm));
+    throw InputError(
+        fmt::format("registration: the turntable prior's uncertainty must be positive and finite "
+                    "(angle {} deg, "
+                    "tilt {} deg, translation {} mm); check the turntable calibration and "
+                    "turntable.angle_sd_deg",
+                    prior.angle_sd_deg, prior.tilt_sd_deg, prior.translation_sd_mm));
   }
   for (std::size_t i = 0; i < views.size(); ++i) {
     const OrganisedView* view = views[i].view;
@@ -163,7 +164,8 @@ struct Pair {
 
 // Nearest-neighbour pairs of `source` in the tree's cloud within `max_distance_mm` and with
 // compatible normals.
-std::vector<Pair> nearest_pairs(const CloudT& source, const pcl::search::KdTree<PointT>& target_tree,
+std::vector<Pair> nearest_pairs(const CloudT& source,
+                                const pcl::search::KdTree<PointT>& target_tree,
                                 double max_distance_mm) {
   std::vector<Pair> pairs;
   const CloudT& target = *target_tree.getInputCloud();
@@ -196,8 +198,9 @@ const std::array<const char*, 6> kTwistAxisNames = {"rot_x",   "rot_y",   "rot_z
 // Names the degenerate subspace (columns of `basis`, orthonormal) by world axes: greedily the
 // axis that lies most in it, then the next one after removing what is already named (Gram-Schmidt)
 // — eigenvectors of equal (near-zero) eigenvalues are arbitrary mixtures, the axes are not.
-std::vector<DegenerateDirection> named_directions(const Eigen::Matrix<double, 6, Eigen::Dynamic>& basis,
-                                                  const Matrix6d& jtj, double largest_eigenvalue) {
+std::vector<DegenerateDirection> named_directions(
+    const Eigen::Matrix<double, 6, Eigen::Dynamic>& basis, const Matrix6d& jtj,
+    double largest_eigenvalue) {
   std::vector<DegenerateDirection> named;
   std::vector<Vector6d> twists;
   std::array<bool, 6> used{};
@@ -264,8 +267,8 @@ Step constrained_step(const Matrix6d& jtj, const Vector6d& jtr, const Params& pa
   // decomposition gives the least-norm step should the free system still be singular.
   Eigen::Matrix<double, 6, Eigen::Dynamic> free = Matrix6d::Identity();
   if (held.cols() > 0) {
-    const Matrix6d q = Eigen::HouseholderQR<Eigen::Matrix<double, 6, Eigen::Dynamic>>(held)
-                           .householderQ();
+    const Matrix6d q =
+        Eigen::HouseholderQR<Eigen::Matrix<double, 6, Eigen::Dynamic>>(held).householderQ();
     free = q.rightCols(6 - held.cols());
   }
   const Eigen::MatrixXd reduced = free.transpose() * jtj * free;
@@ -323,7 +326,8 @@ std::vector<float> local_contrast(const CloudT& cloud, const pcl::search::KdTree
 
 // Per point: the gradient of the contrast in its tangent plane (least squares over the neighbours
 // projected onto that plane); zero where it cannot be fitted.
-std::vector<Eigen::Vector3f> contrast_gradients(const CloudT& cloud, const std::vector<float>& contrast,
+std::vector<Eigen::Vector3f> contrast_gradients(const CloudT& cloud,
+                                                const std::vector<float>& contrast,
                                                 const pcl::search::KdTree<PointT>& tree,
                                                 double radius_mm) {
   std::vector<Eigen::Vector3f> gradient(cloud.size(), Eigen::Vector3f::Zero());
@@ -380,8 +384,8 @@ ViewData prepare_view(const ViewInput& input, const PriorUncertainty& prior, con
   data.tree->setInputCloud(data.at_prior);
   if (params.use_colour && has_colour(*input.view)) {
     data.contrast = local_contrast(cloud, *data.tree, kContrastRadiusVoxels * params.voxel_mm);
-    data.gradient =
-        contrast_gradients(cloud, data.contrast, *data.tree, kGradientRadiusVoxels * params.voxel_mm);
+    data.gradient = contrast_gradients(cloud, data.contrast, *data.tree,
+                                       kGradientRadiusVoxels * params.voxel_mm);
   }
   data.sample.resize(cloud.size());
   std::iota(data.sample.begin(), data.sample.end(), 0);
@@ -400,7 +404,8 @@ ViewData prepare_view(const ViewInput& input, const PriorUncertainty& prior, con
   const auto n = static_cast<double>(cloud.size());
   data.centroid /= n;
   double radius_sq = 0.0;
-  for (const auto& p : cloud) radius_sq += (p.getVector3fMap().cast<double>() - data.centroid).squaredNorm();
+  for (const auto& p : cloud)
+    radius_sq += (p.getVector3fMap().cast<double>() - data.centroid).squaredNorm();
   data.rms_radius_mm = std::sqrt(radius_sq / n);
   constexpr double kRad = std::numbers::pi / 180.0;
   data.prior_displacement_sd_mm = prior.translation_sd_mm +
@@ -467,9 +472,11 @@ struct PairRefinement {
 // term is weighted by the inverse of its own robust residual variance (millimetres and contrast
 // are different units; the data say how reliable each is).
 PairRefinement refine_pair(const ViewData& target, const ViewData& source,
-                           const Eigen::Isometry3d& initial, double coarse_mm, const Params& params) {
+                           const Eigen::Isometry3d& initial, double coarse_mm,
+                           const Params& params) {
   std::vector<double> distances{coarse_mm};
-  while (distances.back() > params.max_correspondence_mm * 1.5) distances.push_back(distances.back() / 2);
+  while (distances.back() > params.max_correspondence_mm * 1.5)
+    distances.push_back(distances.back() / 2);
   distances.push_back(params.max_correspondence_mm);
   const CloudT& target_cloud = *target.at_prior;
   CloudT sample;
@@ -488,83 +495,88 @@ PairRefinement refine_pair(const ViewData& target, const ViewData& source,
   result.correction = initial;
   Matrix6d last_jtj = Matrix6d::Zero();
   const auto run_stages = [&](std::size_t first_stage) {
-  for (std::size_t stage = first_stage; stage < distances.size(); ++stage) {
-    const bool last_stage = stage + 1 == distances.size();
-    const bool colour = last_stage && params.use_colour && target.coloured() && source.coloured();
-    const CloudT& points = last_stage ? sample : coarse_sample;
-    const double tolerance_mm = last_stage ? 1e-4 : 0.01 * distances[stage];
-    for (int iteration = 0; iteration < params.max_iterations; ++iteration) {
-      const CloudT::Ptr moved = transformed(points, result.correction);
-      std::vector<Pair> pairs = nearest_pairs(*moved, *target.tree, distances[stage]);
-      if (pairs.size() < kMinCorrespondences) return false;  // lost its surface: not converged
-      // Trimmed: only the closest share of the pairs pulls.
-      const std::size_t kept = std::min(
-          pairs.size(), std::max(kMinCorrespondences, static_cast<std::size_t>(
-                                                          kTrimmedOverlapRatio * pairs.size())));
-      std::nth_element(pairs.begin(), pairs.begin() + (kept - 1), pairs.end(),
-                       [](const Pair& a, const Pair& b) { return a.distance_sq < b.distance_sq; });
-      pairs.resize(kept);
+    for (std::size_t stage = first_stage; stage < distances.size(); ++stage) {
+      const bool last_stage = stage + 1 == distances.size();
+      const bool colour = last_stage && params.use_colour && target.coloured() && source.coloured();
+      const CloudT& points = last_stage ? sample : coarse_sample;
+      const double tolerance_mm = last_stage ? 1e-4 : 0.01 * distances[stage];
+      for (int iteration = 0; iteration < params.max_iterations; ++iteration) {
+        const CloudT::Ptr moved = transformed(points, result.correction);
+        std::vector<Pair> pairs = nearest_pairs(*moved, *target.tree, distances[stage]);
+        if (pairs.size() < kMinCorrespondences) return false;  // lost its surface: not converged
+        // Trimmed: only the closest share of the pairs pulls.
+        const std::size_t kept = std::min(
+            pairs.size(), std::max(kMinCorrespondences,
+                                   static_cast<std::size_t>(kTrimmedOverlapRatio * pairs.size())));
+        std::nth_element(
+            pairs.begin(), pairs.begin() + (kept - 1), pairs.end(),
+            [](const Pair& a, const Pair& b) { return a.distance_sq < b.distance_sq; });
+        pairs.resize(kept);
 
-      std::vector<double> geometric(pairs.size()), photometric;
-      for (std::size_t k = 0; k < pairs.size(); ++k) {
-        geometric[k] = along_target_normal((*moved)[pairs[k].source], target_cloud[pairs[k].target]);
-      }
-      if (colour) {
-        photometric.assign(pairs.size(), std::numeric_limits<double>::quiet_NaN());
+        std::vector<double> geometric(pairs.size()), photometric;
         for (std::size_t k = 0; k < pairs.size(); ++k) {
-          const int q = pairs[k].target;
-          const float cs = source.contrast[static_cast<std::size_t>(source.sample[pairs[k].source])];
-          if (!std::isfinite(cs) || !std::isfinite(target.contrast[q])) continue;
-          const Eigen::Vector3f offset =
-              (*moved)[pairs[k].source].getVector3fMap() - target_cloud[q].getVector3fMap();
-          photometric[k] = target.contrast[q] + target.gradient[q].dot(offset) - cs;
+          geometric[k] =
+              along_target_normal((*moved)[pairs[k].source], target_cloud[pairs[k].target]);
         }
-      }
-      const double geometric_weight = 1.0 / std::pow(robust_sd(geometric, kGeometricNoiseFloorMm), 2);
-      std::vector<double> finite;
-      for (double r : photometric) {
-        if (std::isfinite(r)) finite.push_back(r);
-      }
-      const double photometric_weight = 1.0 / std::pow(robust_sd(finite, kContrastNoiseFloor), 2);
-
-      Matrix6d jtj = Matrix6d::Zero();
-      Vector6d jtr = Vector6d::Zero();
-      const auto add_row = [&](const Vec3d& p, const Vec3d& direction, double residual, double weight) {
-        Vector6d row;
-        row << (p - c).cross(direction) / s, direction;
-        jtj.selfadjointView<Eigen::Lower>().rankUpdate(row, weight);
-        jtr += weight * residual * row;
-      };
-      for (std::size_t k = 0; k < pairs.size(); ++k) {
-        const Vec3d p = (*moved)[pairs[k].source].getVector3fMap().cast<double>();
-        add_row(p, target_cloud[pairs[k].target].getNormalVector3fMap().cast<double>(), geometric[k],
-                geometric_weight);
-        if (colour && std::isfinite(photometric[k])) {
-          add_row(p, target.gradient[pairs[k].target].cast<double>(), photometric[k],
-                  photometric_weight);
+        if (colour) {
+          photometric.assign(pairs.size(), std::numeric_limits<double>::quiet_NaN());
+          for (std::size_t k = 0; k < pairs.size(); ++k) {
+            const int q = pairs[k].target;
+            const float cs =
+                source.contrast[static_cast<std::size_t>(source.sample[pairs[k].source])];
+            if (!std::isfinite(cs) || !std::isfinite(target.contrast[q])) continue;
+            const Eigen::Vector3f offset =
+                (*moved)[pairs[k].source].getVector3fMap() - target_cloud[q].getVector3fMap();
+            photometric[k] = target.contrast[q] + target.gradient[q].dot(offset) - cs;
+          }
         }
-      }
-      jtj = jtj.selfadjointView<Eigen::Lower>();
-      last_jtj = jtj;
-      result.used_colour = colour;
+        const double geometric_weight =
+            1.0 / std::pow(robust_sd(geometric, kGeometricNoiseFloorMm), 2);
+        std::vector<double> finite;
+        for (double r : photometric) {
+          if (std::isfinite(r)) finite.push_back(r);
+        }
+        const double photometric_weight = 1.0 / std::pow(robust_sd(finite, kContrastNoiseFloor), 2);
 
-      Step step = constrained_step(jtj, jtr, params);
-      const Vec3d rotation = step.twist.head<3>() / s;
-      const Vec3d translation = step.twist.tail<3>();
-      const double angle = rotation.norm();
-      Eigen::Isometry3d delta{Eigen::Translation3d(c + translation)};
-      if (angle > 0) delta.rotate(Eigen::AngleAxisd(angle, rotation / angle));
-      delta.translate(-c);
-      result.correction = delta * result.correction;
-      result.degenerate = std::move(step.degenerate);
-      ++result.iterations;
-      // The last stage has converged when an iteration moves the view by less than 1e-4 mm and
-      // 1e-4 mm / s rad: far below the scanner's noise, yet reachable on real data, where the
-      // trimmed pair set keeps changing by a few pairs and ICP never becomes exactly stationary.
-      if (translation.norm() < tolerance_mm && angle * s < tolerance_mm) break;
+        Matrix6d jtj = Matrix6d::Zero();
+        Vector6d jtr = Vector6d::Zero();
+        const auto add_row = [&](const Vec3d& p, const Vec3d& direction, double residual,
+                                 double weight) {
+          Vector6d row;
+          row << (p - c).cross(direction) / s, direction;
+          jtj.selfadjointView<Eigen::Lower>().rankUpdate(row, weight);
+          jtr += weight * residual * row;
+        };
+        for (std::size_t k = 0; k < pairs.size(); ++k) {
+          const Vec3d p = (*moved)[pairs[k].source].getVector3fMap().cast<double>();
+          add_row(p, target_cloud[pairs[k].target].getNormalVector3fMap().cast<double>(),
+                  geometric[k], geometric_weight);
+          if (colour && std::isfinite(photometric[k])) {
+            add_row(p, target.gradient[pairs[k].target].cast<double>(), photometric[k],
+                    photometric_weight);
+          }
+        }
+        jtj = jtj.selfadjointView<Eigen::Lower>();
+        last_jtj = jtj;
+        result.used_colour = colour;
+
+        Step step = constrained_step(jtj, jtr, params);
+        const Vec3d rotation = step.twist.head<3>() / s;
+        const Vec3d translation = step.twist.tail<3>();
+        const double angle = rotation.norm();
+        Eigen::Isometry3d delta{Eigen::Translation3d(c + translation)};
+        if (angle > 0) delta.rotate(Eigen::AngleAxisd(angle, rotation / angle));
+        delta.translate(-c);
+        result.correction = delta * result.correction;
+        result.degenerate = std::move(step.degenerate);
+        ++result.iterations;
+        // The last stage has converged when an iteration moves the view by less than 1e-4 mm and
+        // 1e-4 mm / s rad: far below the scanner's noise, yet reachable on real data, where the
+        // trimmed pair set keeps changing by a few pairs and ICP never becomes exactly stationary.
+        if (translation.norm() < tolerance_mm && angle * s < tolerance_mm) break;
+      }
     }
-  }
-  return true;
+    return true;
   };
   // Like PCL's default criteria, running out of iterations still counts as converged.
   result.converged = run_stages(0);
@@ -600,7 +612,8 @@ PairRefinement refine_pair(const ViewData& target, const ViewData& source,
       kept(i) = 0.0;
     }
   }
-  const Matrix6d centred = eigen.eigenvectors() * kept.asDiagonal() * eigen.eigenvectors().transpose();
+  const Matrix6d centred =
+      eigen.eigenvectors() * kept.asDiagonal() * eigen.eigenvectors().transpose();
   const Vector6d seen = (kept.array() > 0).cast<double>();
   result.seen = eigen.eigenvectors() * seen.asDiagonal() * eigen.eigenvectors().transpose();
   // The rows linearise a rotation about the fixed world point c (where the source's centroid was
@@ -614,7 +627,7 @@ PairRefinement refine_pair(const ViewData& target, const ViewData& source,
 // both at their current poses: `source_to_target` maps source points (at prior) into the target's
 // cloud frame.
 struct Coverage {
-  std::vector<char> covered;  // per sample point
+  std::vector<char> covered;      // per sample point
   std::vector<double> residuals;  // point-to-plane, per correspondence
 };
 
@@ -627,7 +640,8 @@ void cover(const ViewData& source, std::size_t count, const ViewData& target,
   coverage.covered.resize(std::max(coverage.covered.size(), count), 0);
   for (const Pair& pair : nearest_pairs(*moved, *target.tree, distance_mm)) {
     coverage.covered[pair.source] = 1;
-    coverage.residuals.push_back(along_target_normal((*moved)[pair.source], (*target.at_prior)[pair.target]));
+    coverage.residuals.push_back(
+        along_target_normal((*moved)[pair.source], (*target.at_prior)[pair.target]));
   }
 }
 
@@ -683,9 +697,11 @@ Eigen::Isometry3d measurement_frame(const GraphEdge& e, const std::vector<Pose>&
 // there, not in the world, it is unchanged by a common motion of all views: world-frame residuals
 // of slightly inconsistent edges would turn with such a motion and, weighted by the edges' large
 // information, push the whole graph away from its priors.
-Vector6d edge_residual(const GraphEdge& e, const std::vector<Pose>& poses, const std::vector<ViewInput>& views) {
+Vector6d edge_residual(const GraphEdge& e, const std::vector<Pose>& poses,
+                       const std::vector<ViewInput>& views) {
   const Eigen::Isometry3d k = measurement_frame(e, poses, views);
-  return log_twist(k * poses[e.source] * e.measured.inverse() * poses[e.target].inverse() * k.inverse());
+  return log_twist(k * poses[e.source] * e.measured.inverse() * poses[e.target].inverse() *
+                   k.inverse());
 }
 
 // Information (per rad²) that holds a rotation no edge sees at the prior's value: far above any
@@ -709,8 +725,10 @@ double prior_weight(const Pose& pose, const Pose& prior, const Matrix6d& prior_i
 // graph laid out along a spanning tree (breadth first) from the view whose layout agrees best
 // with the priors. Gauss-Newton linearises; started from the priors it would have to bridge a
 // view's whole prior error in one step (10° and 60 mm for the bunny's bun045), and fail.
-std::vector<Pose> spanning_tree_poses(const std::vector<ViewInput>& views, const std::vector<char>& active,
-                                      const std::vector<GraphEdge>& edges, const Matrix6d& prior_information) {
+std::vector<Pose> spanning_tree_poses(const std::vector<ViewInput>& views,
+                                      const std::vector<char>& active,
+                                      const std::vector<GraphEdge>& edges,
+                                      const Matrix6d& prior_information) {
   const std::size_t n = views.size();
   std::vector<Pose> best;
   for (const auto& v : views) best.push_back(v.prior);
@@ -741,7 +759,8 @@ std::vector<Pose> spanning_tree_poses(const std::vector<ViewInput>& views, const
       }
       if (!reached[start]) continue;  // another part of the graph
       double score = 0.0;
-      for (std::size_t k : queue) score += prior_weight(poses[k], views[k].prior, prior_information);
+      for (std::size_t k : queue)
+        score += prior_weight(poses[k], views[k].prior, prior_information);
       if (score > best_score) {
         best_score = score;
         for (std::size_t k : queue) best[k] = poses[k], done[k] = 1;
@@ -812,12 +831,14 @@ double twist_about_z_deg(const Eigen::Matrix3d& rotation) {
 double wrapped_deg(double deg) { return std::remainder(deg, 360.0); }
 
 // The names every one of `sets` holds (the directions none of a view's edges constrains).
-std::vector<DegenerateDirection> common_directions(const std::vector<const std::vector<DegenerateDirection>*>& sets) {
+std::vector<DegenerateDirection> common_directions(
+    const std::vector<const std::vector<DegenerateDirection>*>& sets) {
   std::vector<DegenerateDirection> common;
   if (sets.empty()) return common;
   for (const auto& direction : *sets.front()) {
     const bool everywhere = std::all_of(sets.begin(), sets.end(), [&](const auto* set) {
-      return std::any_of(set->begin(), set->end(), [&](const auto& d) { return d.name == direction.name; });
+      return std::any_of(set->begin(), set->end(),
+                         [&](const auto& d) { return d.name == direction.name; });
     });
     if (everywhere) common.push_back(direction);
   }
@@ -830,8 +851,8 @@ Pose turntable_prior(const Pose& scanner_to_world, double turntable_angle_rad) {
   return Pose(Eigen::AngleAxisd(-turntable_angle_rad, Eigen::Vector3d::UnitZ())) * scanner_to_world;
 }
 
-Result register_views(const std::vector<ViewInput>& views, const PriorUncertainty& prior_uncertainty,
-                      const Params& params) {
+Result register_views(const std::vector<ViewInput>& views,
+                      const PriorUncertainty& prior_uncertainty, const Params& params) {
   check_input(views, prior_uncertainty, params);
   const int n = static_cast<int>(views.size());
   Result result;
@@ -852,9 +873,9 @@ Result register_views(const std::vector<ViewInput>& views, const PriorUncertaint
   // The largest correction that is still plausible bounds how far ICP searches.
   const auto coarse_distance = [&](const ViewData& a, const ViewData& b) {
     const double sd = std::hypot(a.prior_displacement_sd_mm, b.prior_displacement_sd_mm);
-    const double plausible = params.max_correction_mm +
-                             params.max_correction_deg * std::numbers::pi / 180.0 *
-                                 std::max(a.rms_radius_mm, b.rms_radius_mm);
+    const double plausible =
+        params.max_correction_mm + params.max_correction_deg * std::numbers::pi / 180.0 *
+                                       std::max(a.rms_radius_mm, b.rms_radius_mm);
     return params.max_correspondence_mm + std::min(3.0 * sd, plausible);
   };
 
@@ -886,10 +907,12 @@ Result register_views(const std::vector<ViewInput>& views, const PriorUncertaint
   }
   for (auto& c : candidates) c.overlap = overlap_at_prior(c.target, c.source);
   for (auto& c : extra) c.overlap = overlap_at_prior(c.target, c.source);
-  std::sort(extra.begin(), extra.end(), [](const auto& a, const auto& b) { return a.overlap > b.overlap; });
+  std::sort(extra.begin(), extra.end(),
+            [](const auto& a, const auto& b) { return a.overlap > b.overlap; });
   std::vector<int> extra_count(views.size(), 0);
   for (const auto& c : extra) {
-    if (c.overlap < params.min_edge_overlap || extra_count[c.target] >= params.max_extra_edges_per_view ||
+    if (c.overlap < params.min_edge_overlap ||
+        extra_count[c.target] >= params.max_extra_edges_per_view ||
         extra_count[c.source] >= params.max_extra_edges_per_view) {
       continue;
     }
@@ -902,7 +925,8 @@ Result register_views(const std::vector<ViewInput>& views, const PriorUncertaint
   // from the poses the first solve found (closer than the priors, so pairs that went astray from
   // the priors can converge) and solves again.
   std::vector<int> candidate_edges(views.size(), 0);
-  std::erase_if(candidates, [&](const Candidate& c) { return c.overlap < params.min_edge_overlap; });
+  std::erase_if(candidates,
+                [&](const Candidate& c) { return c.overlap < params.min_edge_overlap; });
   for (const auto& c : candidates) ++candidate_edges[c.target], ++candidate_edges[c.source];
   result.edges.resize(candidates.size());
   std::vector<GraphEdge> graph;
@@ -928,7 +952,8 @@ Result register_views(const std::vector<ViewInput>& views, const PriorUncertaint
     edge.rms_mm = root_mean_square(fit.residuals);
     if (!pair.converged) {
       edge.status = "not_converged";
-    } else if (edge.correction_deg > params.max_correction_deg || edge.correction_mm > params.max_correction_mm) {
+    } else if (edge.correction_deg > params.max_correction_deg ||
+               edge.correction_mm > params.max_correction_mm) {
       edge.status = "implausible_correction";
     } else {
       edge.status = "accepted";
@@ -941,7 +966,8 @@ Result register_views(const std::vector<ViewInput>& views, const PriorUncertaint
   const double to_rad = std::numbers::pi / 180.0;
   Matrix6d prior_information = Matrix6d::Zero();
   prior_information.diagonal() << std::pow(prior_uncertainty.tilt_sd_deg * to_rad, -2),
-      std::pow(prior_uncertainty.tilt_sd_deg * to_rad, -2), std::pow(prior_uncertainty.angle_sd_deg * to_rad, -2),
+      std::pow(prior_uncertainty.tilt_sd_deg * to_rad, -2),
+      std::pow(prior_uncertainty.angle_sd_deg * to_rad, -2),
       Vec3d::Constant(std::pow(prior_uncertainty.translation_sd_mm, -2));
   std::vector<Pose> poses;
   for (const auto& v : views) poses.push_back(v.prior);
@@ -966,7 +992,8 @@ Result register_views(const std::vector<ViewInput>& views, const PriorUncertaint
       for (int i = 0; i < n && params.keep_prior_in_degenerate_directions; ++i) {
         std::vector<const std::vector<DegenerateDirection>*> seen_by;
         for (const auto& e : graph) {
-          if (e.target == i || e.source == i) seen_by.push_back(&result.edges[e.edge_index].degenerate);
+          if (e.target == i || e.source == i)
+            seen_by.push_back(&result.edges[e.edge_index].degenerate);
         }
         for (const auto& direction : common_directions(seen_by)) {
           if (!direction.name.starts_with("rot")) continue;
@@ -981,8 +1008,10 @@ Result register_views(const std::vector<ViewInput>& views, const PriorUncertaint
       for (std::size_t k = 0; k < graph.size(); ++k) {
         const ViewData& source = data[graph[k].source];
         // Only in the directions the edge constrains: elsewhere the priors decide, not the edge.
-        const Vector6d xi = graph[k].seen * centred_from_origin(source.centroid, std::max(source.rms_radius_mm, 1.0)) *
-                            edge_residual(graph[k], poses, views);
+        const Vector6d xi =
+            graph[k].seen *
+            centred_from_origin(source.centroid, std::max(source.rms_radius_mm, 1.0)) *
+            edge_residual(graph[k], poses, views);
         const double misalignment = xi.head<3>().norm() + xi.tail<3>().norm();
         if (misalignment > worst) worst = misalignment, worst_edge = k;
       }
@@ -1000,7 +1029,8 @@ Result register_views(const std::vector<ViewInput>& views, const PriorUncertaint
         if (deg <= params.max_correction_deg && mm <= params.max_correction_mm) continue;
         implausible[i] = 1;
         for (auto& e : graph) {
-          if (e.target == i || e.source == i) result.edges[e.edge_index].status = "implausible_correction";
+          if (e.target == i || e.source == i)
+            result.edges[e.edge_index].status = "implausible_correction";
         }
         std::erase_if(graph, [&](const GraphEdge& e) { return e.target == i || e.source == i; });
         dropped = true;
@@ -1012,7 +1042,8 @@ Result register_views(const std::vector<ViewInput>& views, const PriorUncertaint
   if (params.refine_with_icp) {
     for (std::size_t k = 0; k < candidates.size(); ++k) {
       const Candidate& c = candidates[k];
-      refine_edge(k, Eigen::Isometry3d::Identity(), coarse_distance(data[c.target], data[c.source]));
+      refine_edge(k, Eigen::Isometry3d::Identity(),
+                  coarse_distance(data[c.target], data[c.source]));
     }
     solve_consistent();
     const std::vector<char> placed = active;
@@ -1023,13 +1054,14 @@ Result register_views(const std::vector<ViewInput>& views, const PriorUncertaint
       const Candidate& c = candidates[k];
       if (!placed[c.target] || !placed[c.source]) {
         // A view the first round could not place: its pairs start from the priors again.
-        refine_edge(k, Eigen::Isometry3d::Identity(), coarse_distance(data[c.target], data[c.source]));
+        refine_edge(k, Eigen::Isometry3d::Identity(),
+                    coarse_distance(data[c.target], data[c.source]));
         continue;
       }
       // The source where the first solve put it, relative to the target there, in the target's
       // prior frame; fine distances only.
-      const Eigen::Isometry3d initial = views[c.target].prior * first[c.target].inverse() * first[c.source] *
-                                        views[c.source].prior.inverse();
+      const Eigen::Isometry3d initial = views[c.target].prior * first[c.target].inverse() *
+                                        first[c.source] * views[c.source].prior.inverse();
       refine_edge(k, initial, params.max_correspondence_mm);
     }
     solve_consistent();
@@ -1051,11 +1083,13 @@ Result register_views(const std::vector<ViewInput>& views, const PriorUncertaint
     out.about_z_deg = wrapped_deg(twist_about_z_deg(correction.linear()));
     if (active[i]) {
       const Matrix6d origin = solution.covariance.block<6, 6>(6 * i, 6 * i);
-      const Matrix6d a = centred_from_origin(out.pose * views[i].prior.inverse() * data[i].centroid, 1.0);
+      const Matrix6d a =
+          centred_from_origin(out.pose * views[i].prior.inverse() * data[i].centroid, 1.0);
       const Matrix6d centred = a * origin * a.transpose();
       out.angle_sd_deg = to_deg(std::sqrt(std::max(0.0, centred(2, 2))));
       out.tilt_sd_deg = to_deg(std::sqrt(std::max({0.0, centred(0, 0), centred(1, 1)})));
-      out.translation_sd_mm = std::sqrt(std::max({0.0, centred(3, 3), centred(4, 4), centred(5, 5)}));
+      out.translation_sd_mm =
+          std::sqrt(std::max({0.0, centred(3, 3), centred(4, 4), centred(5, 5)}));
     }
     Coverage fit;
     std::vector<const std::vector<DegenerateDirection>*> edge_directions;
@@ -1077,7 +1111,9 @@ Result register_views(const std::vector<ViewInput>& views, const PriorUncertaint
     out.overlap = covered_share(fit);
     out.rms_mm = root_mean_square(fit.residuals);
     out.degenerate = common_directions(edge_directions);
-    const auto any = [&](const char* status) { return std::find(reasons.begin(), reasons.end(), status) != reasons.end(); };
+    const auto any = [&](const char* status) {
+      return std::find(reasons.begin(), reasons.end(), status) != reasons.end();
+    };
     if (candidate_edges[i] == 0) {
       out.flags.emplace_back("no_overlap");
     } else if (implausible[i] || (out.edges == 0 && any("implausible_correction"))) {
@@ -1087,8 +1123,10 @@ Result register_views(const std::vector<ViewInput>& views, const PriorUncertaint
     } else if (out.edges == 0 && any("not_converged")) {
       out.flags.emplace_back("not_converged");
     }
-    for (const auto& direction : out.degenerate) out.flags.push_back("degenerate:" + direction.name);
-    out.merged = out.edges > 0 || (!params.refine_with_icp && candidate_edges[i] > 0) || present.size() == 1;
+    for (const auto& direction : out.degenerate)
+      out.flags.push_back("degenerate:" + direction.name);
+    out.merged =
+        out.edges > 0 || (!params.refine_with_icp && candidate_edges[i] > 0) || present.size() == 1;
     if (!out.merged || implausible[i]) out.pose = views[i].prior;
   }
 

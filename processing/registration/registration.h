@@ -11,11 +11,11 @@
 //     accumulated; edges inconsistent with the rest are dropped.
 #pragma once
 
-#include "core/types.h"
-
 #include <array>
 #include <string>
 #include <vector>
+
+#include "core/types.h"
 
 namespace sherd::registration {
 
@@ -89,8 +89,8 @@ struct EdgeResult {
   // "not_converged" (ICP lost its correspondences), "inconsistent" (dropped by the global solve:
   // it disagrees with the other edges and the priors)
   std::string status;
-  double rms_mm = 0.0;    // point-to-plane RMS at the pair's ICP result
-  double overlap = 0.0;   // share of the source's points with a correspondence there
+  double rms_mm = 0.0;   // point-to-plane RMS at the pair's ICP result
+  double overlap = 0.0;  // share of the source's points with a correspondence there
   int iterations = 0;
   bool used_colour = false;
   double correction_deg = 0.0;  // the source's correction relative to the target, from the prior
@@ -101,12 +101,12 @@ struct EdgeResult {
 struct ViewResult {
   Pose pose = Pose::Identity();  // final scanner → world
   // Measured at the final poses against the views it shares accepted edges with.
-  double rms_mm = 0.0;           // point-to-plane RMS over the correspondences
-  double overlap = 0.0;          // share of the view's points with a correspondence
-  int iterations = 0;            // ICP iterations over the view's edges
-  double correction_deg = 0.0;   // rotation between prior and final pose
-  double correction_mm = 0.0;    // displacement of the view's centroid between prior and final pose
-  double about_z_deg = 0.0;      // the correction's part about the world z (turntable) axis, signed
+  double rms_mm = 0.0;          // point-to-plane RMS over the correspondences
+  double overlap = 0.0;         // share of the view's points with a correspondence
+  int iterations = 0;           // ICP iterations over the view's edges
+  double correction_deg = 0.0;  // rotation between prior and final pose
+  double correction_mm = 0.0;   // displacement of the view's centroid between prior and final pose
+  double about_z_deg = 0.0;     // the correction's part about the world z (turntable) axis, signed
   // Standard deviations of the final pose from the global solve: rotation about the turntable
   // axis, tilt, translation of the view's centroid.
   double angle_sd_deg = 0.0, tilt_sd_deg = 0.0, translation_sd_mm = 0.0;
@@ -133,7 +133,7 @@ struct Result {
 // Views are in turntable order (view i and i + 1 are neighbours, the last closes the loop onto the
 // first). Throws sherd::InputError for a malformed view (sizes that do not match width × height, a
 // valid cell that is not finite), a non-finite prior, non-positive parameters or uncertainties.
-Result register_views(const std::vector<ViewInput>& views, const PriorUncertainty& prior_uncertainty,
-                      const Params& params);
+Result register_views(const std::vector<ViewInput>& views,
+                      const PriorUncertainty& prior_uncertainty, const Params& params);
 
 }  // namespace sherd::registration
