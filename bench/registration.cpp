@@ -5,7 +5,8 @@
 //  2. The simulated station (scenes "frame" and "vessel") for --seeds seeds, 8 views each, the
 //     encoder angle perturbed by up to ±0.5° and the translation by up to 0.2 mm.
 // Errors compare relative poses (view 0 → view i), so the arbitrary world frame cancels.
-// Prints one JSON object per view and method, then a summary per data set and method.
+// Prints one JSON object per view and method, then a summary per data set and method (and for the
+// reference poses themselves, "reference": how well the views agree under them).
 //   bench_registration [--conf DIR/bun.conf] [--config config/station.toml] [--seeds 3]
 #include "bench/bench_stats.h"
 #include "config/station_config.h"
@@ -17,7 +18,9 @@
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
+#include <pcl/common/transforms.h>
 #include <pcl/filters/voxel_grid.h>
+#include <pcl/kdtree/kdtree_flann.h>
 #include <pcl/point_types.h>
 #include <pcl/registration/gicp.h>
 #include <pcl/registration/icp.h>
@@ -343,11 +346,43 @@ MethodResult run_pcl(const DataSet& set, double voxel_mm) {
 
 struct Samples {
   std::vector<double> rotation_deg, translation_mm, centroid_mm, seconds;
+  std::vector<double> overlap_distance_mm;  // one per data set
 };
+
+// How well the views agree with each other under `poses`, whatever the reference says: the median
+// distance from each view's points to the nearest point of every other view, over the distances
+// below 2 mm (the overlap). For the Stanford data it compares a method with bun.conf, itself an ICP
+// result (SOURCE.txt: ~0.3 mm), on equal terms.
+double median_overlap_distance_mm(const DataSet& set, const std::vector<Pose>& poses) {
+  std::vector<CloudT::Ptr> clouds;
+  for (std::size_t i = 0; i < set.views.size(); ++i) {
+    auto cloud = downsampled(set.views[i].view, 1.0);
+    pcl::transformPointCloud(*cloud, *cloud, poses[i].matrix().cast<float>());
+    clouds.push_back(cloud);
+  }
+  std::vector<double> distances;
+  std::vector<int> index(1);
+  std::vector<float> distance_sq(1);
+  for (std::size_t j = 0; j < clouds.size(); ++j) {
+    if (clouds[j]->empty()) continue;
+    pcl::KdTreeFLANN<pcl::PointXYZ> tree;
+    tree.setInputCloud(clouds[j]);
+    for (std::size_t i = 0; i < clouds.size(); ++i) {
+      if (i == j) continue;
+      for (const auto& p : *clouds[i]) {
+        if (tree.nearestKSearch(p, 1, index, distance_sq) == 1 && distance_sq[0] < 4.0f) {
+          distances.push_back(std::sqrt(distance_sq[0]));
+        }
+      }
+    }
+  }
+  return quantile(distances, 0.5);
+}
 
 void evaluate(const DataSet& set, const std::string& method, const MethodResult& r,
               std::map<std::string, std::map<std::string, Samples>>& all) {
   auto& s = all[set.name][method];
+  s.overlap_distance_mm.push_back(median_overlap_distance_mm(set, r.poses));
   for (std::size_t i = 1; i < set.views.size(); ++i) {
     const auto& v = set.views[i];
     const auto c = centroid(v.view);
@@ -371,6 +406,9 @@ void evaluate(const DataSet& set, const std::string& method, const MethodResult&
 
 void run_all(const DataSet& set, std::map<std::string, std::map<std::string, Samples>>& all) {
   const double voxel_mm = sherd::registration::Params{}.voxel_mm;
+  std::vector<Pose> truth;
+  for (const auto& v : set.views) truth.push_back(v.truth);
+  all[set.name]["reference"].overlap_distance_mm.push_back(median_overlap_distance_mm(set, truth));
   evaluate(set, "ours", run_ours(set), all);
   evaluate(set, "icp", run_pcl<pcl::IterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ>>(set, voxel_mm), all);
   evaluate(set, "gicp", run_pcl<pcl::GeneralizedIterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ>>(set, voxel_mm),
@@ -387,7 +425,8 @@ void print_summaries(const std::map<std::string, std::map<std::string, Samples>>
                           {"p95_rotation_error_deg", number_or_null(quantile(s.rotation_deg, 0.95))},
                           {"median_translation_error_mm", number_or_null(quantile(s.translation_mm, 0.5))},
                           {"median_centroid_error_mm", number_or_null(quantile(s.centroid_mm, 0.5))},
-                          {"median_seconds_per_view", number_or_null(quantile(s.seconds, 0.5))}};
+                          {"median_seconds_per_view", number_or_null(quantile(s.seconds, 0.5))},
+                          {"median_overlap_distance_mm", number_or_null(quantile(s.overlap_distance_mm, 0.5))}};
       if (method == "ours") {
         for (const char* other : {"icp", "gicp"}) {
           const auto& o = methods.at(other);
