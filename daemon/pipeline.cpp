@@ -1,6 +1,7 @@
 #include "daemon/pipeline.h"
 
 #include "core/errors.h"
+#include "core/files.h"
 #include "daemon/documents.h"
 #include "processing/axis/axis.h"
 #include "processing/fusion/fusion.h"
@@ -13,7 +14,6 @@
 #include <spdlog/spdlog.h>
 
 #include <chrono>
-#include <fstream>
 
 namespace sherd::station {
 namespace {
@@ -24,15 +24,8 @@ double ms_since(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
 }
 
-// Writes JSON through a temporary file and a rename, so a reader never sees half a document.
 void write_json_file(const std::filesystem::path& file, const nlohmann::json& doc) {
-  const auto tmp = std::filesystem::path(file.string() + ".tmp");
-  {
-    std::ofstream out(tmp);
-    if (!out) throw InputError(fmt::format("cannot write {}: check the output directory is writable", tmp.string()));
-    out << doc.dump(2) << '\n';
-  }
-  std::filesystem::rename(tmp, file);
+  write_file_atomically(file, doc.dump(2) + '\n');
 }
 
 registration::Params registration_params(const config::RegistrationSettings& s) {

@@ -1,6 +1,7 @@
 #include "processing/calibration/turntable_calibration.h"
 
 #include "core/errors.h"
+#include "core/files.h"
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -545,22 +546,7 @@ void write_turntable_calibration(const std::filesystem::path& file,
   if (extra.is_object()) document.update(extra);
   std::error_code error;
   if (file.has_parent_path()) std::filesystem::create_directories(file.parent_path(), error);
-  // Written beside the target and renamed over it: a reader (or a crash) never sees half a file.
-  const auto temporary = std::filesystem::path(file.string() + ".tmp");
-  {
-    std::ofstream out(temporary, std::ios::trunc);
-    out << document.dump(2) << '\n';
-    out.close();
-    if (!out) {
-      throw InputError(fmt::format("{}: cannot write the turntable calibration — check that the "
-                                   "directory is writable and the disk not full", temporary.string()));
-    }
-  }
-  std::filesystem::rename(temporary, file, error);
-  if (error) {
-    throw InputError(fmt::format("{}: cannot replace the turntable calibration: {} — check the "
-                                 "directory's permissions", file.string(), error.message()));
-  }
+  write_file_atomically(file, document.dump(2) + '\n');
 }
 
 TurntableCalibration read_turntable_calibration(const std::filesystem::path& file) {
