@@ -260,7 +260,7 @@ void TurntableFirmware::start_homing(double now_s) {
   last_motion_seconds_ = seconds;
   blocked_until_ = now_s + seconds;  // G28 answers when it is done; later lines wait
   if (sensor_dead) {
-    reply({fmt::format("error:6 homing failed: index not found within {:.0f}°",
+    reply({fmt::format("error:6 homing failed: index not found within {:.0f} degrees",
                        kHomingSearchRev * 360.0)},
           blocked_until_);
   } else {

@@ -105,11 +105,11 @@ TEST(UsbTurntable, PersistentStallFailsWithTheReason) {
   Rig rig(with_fault(FirmwareFault::Stall, 1, 100));
   rig.table->home();
   try {
-    rig.table->move_to(120 * kDeg);
-    FAIL() << "a plate that always stalls cannot reach 120°";
+    rig.table->move_to(135 * kDeg);
+    FAIL() << "a plate that always stalls cannot reach 135°";
   } catch (const DeviceError& e) {
     const std::string what = e.what();
-    EXPECT_NE(what.find("could not reach 120.000° in 3 attempts"), std::string::npos) << what;
+    EXPECT_NE(what.find("could not reach 135.000° in 3 attempts"), std::string::npos) << what;
     EXPECT_NE(what.find("missed steps"), std::string::npos) << what;
   }
   EXPECT_EQ(rig.count("G1 "), 3);

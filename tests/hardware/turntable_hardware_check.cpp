@@ -6,6 +6,7 @@
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cmath>
 #include <exception>
 #include <iostream>
@@ -52,9 +53,9 @@ int main(int argc, char** argv) {
     sherd::drivers::UsbTurntable table(std::move(transport), settings);
     report(true, fmt::format("opened: {}", table.describe()));
     table.home();
-    report(std::abs(table.position()) < 1e-9 ||
-               std::abs(table.position() - 2 * std::numbers::pi) < table.resolution() * 1.5,
-           fmt::format("homed: encoder at {:.4f}°", table.position() / kDeg));
+    const double homed = table.position();  // 0, or one count either side
+    report(std::min(homed, 2 * std::numbers::pi - homed) <= table.resolution() * 1.01,
+           fmt::format("homed: encoder at {:.4f}°", homed / kDeg));
     for (int i = 0; i <= views; ++i) {
       if (unplug && i == views / 2) {
         fmt::print("Pull the turntable's USB cable during the next move and plug it back in.\n");

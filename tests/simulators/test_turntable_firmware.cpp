@@ -48,8 +48,8 @@ TEST(TurntableFirmware, HomingTurnsForwardToTheIndexAndAnswersWhenDone) {
   TurntableFirmware fw(model);
   // 270° forward at 90°/s, 360°/s²: ramps of 0.25 s, 3.25 s in all.
   fw.receive("G28\n", 0);
-  EXPECT_EQ(fw.transmit(3.2), "");
   EXPECT_NEAR(fw.plate_angle_rad(1.625), (90 + 135) * kDeg, 1e-9);  // half way, by symmetry
+  EXPECT_EQ(fw.transmit(3.2), "");
   EXPECT_EQ(fw.transmit(3.26), "ok\n");
   EXPECT_NEAR(fw.last_motion_seconds(), 3.25, 1e-9);
   EXPECT_NEAR(fw.plate_angle_rad(3.3), 0.0, 1e-12);
@@ -67,10 +67,10 @@ TEST(TurntableFirmware, MoveIsAcceptedAtOnceAndFollowsTheTrapezoid) {
   EXPECT_EQ(say(fw, "G1 A10", 1.7).rfind("error:5 ", 0), 0u);  // busy
   EXPECT_EQ(say(fw, "?", 2.3), "idle A:90.0000 T:90.0000 H:1 E:1\nok\n");
   EXPECT_EQ(say(fw, "M114", 2.3), "A:90.0000 C:800\nok\n");
-  // The shortest way, F capped at the maximum speed: 90° → 350° is 100° backwards.
-  EXPECT_EQ(say(fw, "G1 A-10 F1000", 3.0), "ok\n");
-  EXPECT_NEAR(fw.last_motion_seconds(), 100.0 / 90.0 + 0.25, 1e-9);
-  EXPECT_NEAR(fw.plate_angle_rad(10), 350 * kDeg, 1e-9);
+  // The shortest way, F capped at the maximum speed: 90° → -9° = 351° is 99° backwards.
+  EXPECT_EQ(say(fw, "G1 A-9 F1000", 3.0), "ok\n");
+  EXPECT_NEAR(fw.last_motion_seconds(), 99.0 / 90.0 + 0.25, 1e-9);
+  EXPECT_NEAR(fw.plate_angle_rad(10), 351 * kDeg, 1e-9);
   // A target between steps goes to the nearest step (360/3200 = 0.1125°).
   EXPECT_EQ(say(fw, "G1 A20.06", 10), "ok\n");
   EXPECT_EQ(say(fw, "M114", 20), "A:20.0250 C:178\nok\n");
@@ -85,19 +85,20 @@ TEST(TurntableFirmware, StallStopsThePlateShortWhileTheMotorBelievesItArrived) {
   model.fault_at = 2;
   TurntableFirmware fw(model);
   home(fw);
-  say(fw, "G1 A30", 0);
-  EXPECT_EQ(say(fw, "G1 A120", 5), "ok\n");  // the second move stalls
+  // Targets on whole steps (0.1125°), so that the expected angles are exact.
+  say(fw, "G1 A45", 0);
+  EXPECT_EQ(say(fw, "G1 A135", 5), "ok\n");  // the second move stalls
   const double plate = fw.plate_angle_rad(20);
-  EXPECT_GT(plate, (30 + 0.2 * 90 - 0.01) * kDeg);
-  EXPECT_LT(plate, (30 + 0.8 * 90 + 0.01) * kDeg);
+  EXPECT_GT(plate, (45 + 0.2 * 90 - 0.01) * kDeg);
+  EXPECT_LT(plate, (45 + 0.8 * 90 + 0.01) * kDeg);
   const std::string status = say(fw, "?", 20);
   EXPECT_NE(status.find("idle"), std::string::npos) << status;
-  EXPECT_NE(status.find("T:120.0000"), std::string::npos) << status;  // open loop
+  EXPECT_NE(status.find("T:135.0000"), std::string::npos) << status;  // open loop
   const std::string m114 = say(fw, "M114", 20);
   const int count = std::stoi(m114.substr(m114.find("C:") + 2));
   EXPECT_NEAR(count * 0.1125 * kDeg, plate, 0.1125 * kDeg / 2 + 1e-12);  // the encoder tells
-  EXPECT_EQ(say(fw, "G1 A200", 20), "ok\n");  // the third move is sound again
-  EXPECT_NEAR(fw.plate_angle_rad(40), 200 * kDeg + (plate - 120 * kDeg), 1e-9);
+  EXPECT_EQ(say(fw, "G1 A225", 20), "ok\n");  // the third move is sound again: 90° on
+  EXPECT_NEAR(fw.plate_angle_rad(40), plate + 90 * kDeg, 1e-9);
 }
 
 TEST(TurntableFirmware, NoReplyLosesRepliesButStillExecutes) {
