@@ -119,7 +119,7 @@ TEST(UsbTurntableStation, DeadIndexSensorFailsTheScanWithTheReason) {
 }
 
 TEST(UsbTurntableStation, AFaultOnlyTheFirmwareHasIsRefusedForTheSimpleSimulator) {
-  TestStation station({{"turntable.fault", "\"garbled\""}});
+  TestStation station(std::map<std::string, std::string>{{"turntable.fault", "\"garbled\""}});
   const auto result = run({binary("sherdd").string(), "--config", station.config_file.string(),
                            "--data-dir", station.data.string()});
   EXPECT_NE(result.exit_code, 0);
