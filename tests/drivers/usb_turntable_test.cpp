@@ -37,7 +37,7 @@ struct Rig {
   }
   static UsbTurntableSettings fast() {
     UsbTurntableSettings s;
-    s.reply_timeout = std::chrono::milliseconds(60);
+    s.reply_timeout = std::chrono::milliseconds(250);  // generous: the machine may be loaded
     s.reconnect_timeout = std::chrono::milliseconds(300);
     return s;
   }

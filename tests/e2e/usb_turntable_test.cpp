@@ -48,7 +48,7 @@ std::map<std::string, std::string> usb_station(const std::string& fault, int at,
           {"turntable.fault", "\"" + fault + "\""},
           {"turntable.fault_at_move", std::to_string(at)},
           {"turntable.fault_count", std::to_string(count)},
-          {"turntable.reply_timeout_ms", "100"},
+          {"turntable.reply_timeout_ms", "300"},
           {"turntable.reconnect_timeout_s", "1.0"}};
 }
 
