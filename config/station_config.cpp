@@ -305,14 +305,23 @@ StationConfig load_station_config(const fs::path& file) {
 
   auto& tt = config.turntable;
   Section turntable = section("turntable");
-  turntable.read("driver", tt.driver, {"simulated"});
+  turntable.read("driver", tt.driver, {"simulated", "usb", "usb-simulated"});
   turntable.read("steps_per_revolution", tt.steps_per_revolution, from_to(1, 10'000'000));
   turntable.read("speed_deg_s", tt.speed_deg_s, above(0));
   turntable.read("acceleration_deg_s2", tt.acceleration_deg_s2, above(0));
   turntable.read("time_scale", tt.time_scale, at_least(0));
-  turntable.read("fault", tt.fault, {"none", "stall", "timeout", "disconnect"});
+  turntable.read("fault", tt.fault,
+                 {"none", "stall", "timeout", "disconnect", "no_reply", "garbled", "unplug", "homing"});
   turntable.read("fault_at_move", tt.fault_at_move, from_to(1, 1'000'000));
   turntable.read("angle_sd_deg", tt.angle_sd_deg, above_to(0, 10));
+  turntable.read("fault_count", tt.fault_count, from_to(1, 1'000'000));
+  turntable.read("usb_vendor_id", tt.usb_vendor_id, from_to(0, 0xffff));
+  turntable.read("usb_product_id", tt.usb_product_id, from_to(0, 0xffff));
+  turntable.read("usb_serial", tt.usb_serial);
+  turntable.read("usb_interface", tt.usb_interface, from_to(0, 255));
+  turntable.read("reply_timeout_ms", tt.reply_timeout_ms, from_to(1, 60'000));
+  turntable.read("reconnect_timeout_s", tt.reconnect_timeout_s, from_to(0, 600));
+  turntable.read("move_attempts", tt.move_attempts, from_to(1, 10));
   turntable.reject_unknown_keys();
 
   auto& sim = config.simulation;

@@ -46,7 +46,7 @@ struct ScannerSettings {
 };
 
 struct TurntableSettings {
-  std::string driver = "simulated";  // "simulated" (the libusb driver comes with [turntable])
+  std::string driver = "simulated";  // simulated | usb (libusb) | usb-simulated (USB driver on the simulated firmware)
   int steps_per_revolution = 3200;   // encoder / microstep resolution
   double speed_deg_s = 90.0;
   double acceleration_deg_s2 = 360.0;
@@ -54,6 +54,18 @@ struct TurntableSettings {
   std::string fault = "none";        // simulated fault: none | stall | timeout | disconnect
   int fault_at_move = 1;             // the move (1-based, counting from the first move of a scan) that fails
   double angle_sd_deg = 0.1;         // accuracy of the encoder's angle (1σ): weight of the turntable prior
+  // usb-simulated faults: no_reply | garbled | unplug | homing besides stall and disconnect;
+  // how many consecutive commands a fault strikes (drivers/README.md)
+  int fault_count = 1;
+  // The USB controller (usb, usb-simulated): ids, serial (empty: any), CDC data interface,
+  // timeouts and how often a missed move is re-homed and made again.
+  int usb_vendor_id = 0x1209;
+  int usb_product_id = 0x0001;
+  std::string usb_serial;
+  int usb_interface = 1;
+  int reply_timeout_ms = 500;
+  double reconnect_timeout_s = 5.0;
+  int move_attempts = 3;
 };
 
 struct SimulationSettings {

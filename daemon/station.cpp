@@ -1,14 +1,18 @@
 #include "daemon/station.h"
 
 #include "core/errors.h"
+#include "drivers/libusb_transport.h"
+#include "drivers/usb_turntable.h"
 #include "simulators/sim_scanner.h"
 #include "simulators/sim_turntable.h"
+#include "simulators/turntable_firmware.h"
 
 #include <fmt/format.h>
 
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <functional>
 
 namespace sherd::station {
 namespace {
@@ -18,6 +22,65 @@ sim::TurntableFault turntable_fault(const std::string& name) {
   if (name == "timeout") return sim::TurntableFault::Timeout;
   if (name == "disconnect") return sim::TurntableFault::Disconnect;
   return sim::TurntableFault::None;  // the config parser has already rejected anything else
+}
+
+// The turntable named by [turntable] driver, and where its plate physically stands.
+std::unique_ptr<drivers::Turntable> make_turntable(const config::StationConfig& config,
+                                                   std::function<double()>& plate_angle) {
+  const auto& t = config.turntable;
+  const bool usb_only_fault =
+      t.fault == "no_reply" || t.fault == "garbled" || t.fault == "unplug" || t.fault == "homing";
+  if (t.driver == "simulated") {
+    if (usb_only_fault) {
+      throw InputError(
+          fmt::format("{}: turntable.fault = \"{}\" needs turntable.driver = "
+                      "\"usb-simulated\" (the simulated firmware)",
+                      config.source.string(), t.fault));
+    }
+    auto table = std::make_unique<sim::SimulatedTurntable>(
+        sim::TurntableModel{t.steps_per_revolution, t.speed_deg_s, t.acceleration_deg_s2,
+                            t.time_scale, turntable_fault(t.fault), t.fault_at_move});
+    const sim::SimulatedTurntable* plate = table.get();
+    plate_angle = [plate] { return plate->physical_angle(); };
+    return table;
+  }
+  drivers::UsbTurntableSettings settings;
+  settings.steps_per_revolution = t.steps_per_revolution;
+  settings.speed_deg_s = t.speed_deg_s;
+  settings.acceleration_deg_s2 = t.acceleration_deg_s2;
+  settings.reply_timeout = std::chrono::milliseconds(t.reply_timeout_ms);
+  settings.move_attempts = t.move_attempts;
+  settings.reconnect_timeout =
+      std::chrono::milliseconds(static_cast<long>(t.reconnect_timeout_s * 1000));
+  if (t.driver == "usb") {
+    auto transport = std::make_unique<drivers::LibusbTransport>(drivers::UsbDeviceId{
+        static_cast<std::uint16_t>(t.usb_vendor_id), static_cast<std::uint16_t>(t.usb_product_id),
+        t.usb_serial, t.usb_interface});
+    auto table = std::make_unique<drivers::UsbTurntable>(std::move(transport), settings);
+    const drivers::UsbTurntable* plate = table.get();
+    plate_angle = [plate] { return plate->position(); };  // a real plate: its encoder
+    return table;
+  }
+  if (t.fault == "timeout") {
+    throw InputError(
+        fmt::format("{}: turntable.fault = \"timeout\" is the \"simulated\" "
+                    "driver's; with \"usb-simulated\" use \"no_reply\"",
+                    config.source.string()));
+  }
+  sim::FirmwareModel firmware_model;
+  firmware_model.steps_per_revolution = t.steps_per_revolution;
+  firmware_model.max_speed_deg_s = t.speed_deg_s;
+  firmware_model.acceleration_deg_s2 = t.acceleration_deg_s2;
+  firmware_model.fault = sim::firmware_fault_from_string(t.fault);
+  firmware_model.fault_at = t.fault_at_move;
+  firmware_model.fault_count = t.fault_count;
+  firmware_model.seed = config.simulation.seed;
+  auto firmware = std::make_shared<sim::TurntableFirmware>(firmware_model);
+  auto transport = std::make_unique<sim::FirmwareTransport>(firmware, t.time_scale);
+  // The transport lives as long as the turntable, which the Station holds longer than the scanner.
+  const sim::FirmwareTransport* bus = transport.get();
+  plate_angle = [firmware, bus] { return firmware->plate_angle_rad(bus->now_s()); };
+  return std::make_unique<drivers::UsbTurntable>(std::move(transport), settings);
 }
 
 // Uncalibrated, the nominal pose may be off by a mounting error of this order.
@@ -74,10 +137,6 @@ sim::SceneSpec scene_spec(const config::SimulationSettings& simulation) {
 }
 
 Station make_station(const config::StationConfig& config) {
-  if (config.turntable.driver != "simulated") {
-    throw InputError(fmt::format("{}: turntable.driver = \"{}\": no such driver in this build; use \"simulated\"",
-                                 config.source.string(), config.turntable.driver));
-  }
   if (config.scanner.driver != "simulated") {
     throw InputError(fmt::format("{}: scanner.driver = \"{}\": no such driver in this build; use \"simulated\"",
                                  config.source.string(), config.scanner.driver));
@@ -98,10 +157,10 @@ Station make_station(const config::StationConfig& config) {
     }
   }
 
-  const auto& t = config.turntable;
-  auto turntable = std::make_unique<sim::SimulatedTurntable>(sim::TurntableModel{
-      t.steps_per_revolution, t.speed_deg_s, t.acceleration_deg_s2, t.time_scale,
-      turntable_fault(t.fault), t.fault_at_move});
+  // The angle the simulated scanner images the plate at: the plate's physical angle, which after
+  // a stall differs from the commanded one (that is what the station must notice).
+  std::function<double()> plate_angle;
+  std::unique_ptr<drivers::Turntable> turntable = make_turntable(config, plate_angle);
 
   const auto& c = config.scanner;
   sim::ScannerModel model;
@@ -118,12 +177,9 @@ Station make_station(const config::StationConfig& config) {
   model.dropout_fraction = c.dropout_fraction;
   model.seed = config.simulation.seed;
 
-  // The simulated scanner images the plate at the turntable's physical angle, which after a
-  // stall differs from the commanded one: that is what the station must notice.
-  const sim::SimulatedTurntable* plate = turntable.get();
   const sim::SceneSpec spec = scene_spec(config.simulation);
-  auto scanner = std::make_unique<sim::SimulatedScanner>(sim::make_scene(spec), model,
-                                                         [plate] { return plate->physical_angle(); });
+  auto scanner =
+      std::make_unique<sim::SimulatedScanner>(sim::make_scene(spec), model, std::move(plate_angle));
   sim::SimulatedScanner* simulated = scanner.get();
   station.place_calibration_object = [simulated, spec](bool on_plate) {
     sim::SceneSpec now = spec;

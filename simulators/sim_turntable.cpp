@@ -1,6 +1,7 @@
 #include "simulators/sim_turntable.h"
 
 #include "core/errors.h"
+#include "drivers/motion_profile.h"
 
 #include <fmt/format.h>
 
@@ -18,23 +19,8 @@ double wrap(double a) {
 }
 double deg(double rad) { return rad * 180.0 / std::numbers::pi; }
 
-// Time to travel `d` (≥ 0) with speed limit v and acceleration a: accelerate, cruise, brake;
-// or, when d is too short to reach v, a triangle.
-double trapezoid_seconds(double d, double v, double a) {
-  return d >= v * v / a ? d / v + v / a : 2.0 * std::sqrt(d / a);
-}
-
-// Distance covered `t` seconds into that motion.
-double trapezoid_distance(double t, double d, double v, double a) {
-  const double T = trapezoid_seconds(d, v, a);
-  if (t <= 0) return 0.0;
-  if (t >= T) return d;
-  const double ramp = std::min(v / a, T / 2.0);
-  const double peak = a * ramp;
-  if (t < ramp) return 0.5 * a * t * t;
-  if (t > T - ramp) return d - 0.5 * a * (T - t) * (T - t);
-  return 0.5 * peak * ramp + peak * (t - ramp);
-}
+using drivers::trapezoid_distance;
+using drivers::trapezoid_seconds;
 
 }  // namespace
 

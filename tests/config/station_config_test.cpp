@@ -268,8 +268,8 @@ TEST_F(StationConfigTest, ValueOutOfRangeNamesTheRange) {
 
 TEST_F(StationConfigTest, UnknownEnumValueListsTheChoices) {
   EXPECT_EQ(error_of("[turntable]\nfault = \"jam\"\n"),
-            file() + ":2: turntable.fault: expected one of none | stall | timeout | disconnect, "
-                     "got \"jam\"");
+            file() + ":2: turntable.fault: expected one of none | stall | timeout | disconnect | "
+                     "no_reply | garbled | unplug | homing, got \"jam\"");
   EXPECT_EQ(error_of("[render]\nsection_side = \"top\"\n"),
             file() + ":2: render.section_side: expected one of right | left, got \"top\"");
   EXPECT_EQ(error_of("[scanner]\ndriver = \"kinect\"\n"),
