@@ -2,13 +2,13 @@
 // in ../shared/data/lafortune-pbrt.md; malformed files and unknown presets give clear messages.
 #include "render/materials.h"
 
-#include "core/errors.h"
-
 #include <gtest/gtest.h>
 
 #include <filesystem>
 #include <fstream>
 #include <string>
+
+#include "core/errors.h"
 
 namespace sherd::render {
 namespace {

@@ -2,9 +2,6 @@
 // and profile.svg read back with libxml2 (mm units, viewBox, section polygon).
 #include "render/plate.h"
 
-#include "core/errors.h"
-#include "test_meshes.h"
-
 #include <gtest/gtest.h>
 #include <libxml/parser.h>
 #include <libxml/tree.h>
@@ -15,6 +12,9 @@
 #include <filesystem>
 #include <numbers>
 #include <sstream>
+
+#include "core/errors.h"
+#include "test_meshes.h"
 
 namespace sherd::render {
 namespace {
