@@ -1,7 +1,5 @@
 #include "render/materials.h"
 
-#include "core/errors.h"
-
 #include <fmt/format.h>
 #include <libxml/parser.h>
 #include <libxml/tree.h>
@@ -10,6 +8,8 @@
 #include <cmath>
 #include <cstdlib>
 #include <memory>
+
+#include "core/errors.h"
 
 namespace sherd::render {
 namespace {

@@ -505,7 +505,20 @@ MeshRenderer::MeshRenderer(const Mesh& mesh, const LafortuneMaterial& material,
 
 MeshRenderer::~MeshRenderer() = default;
 
-RgbaImage MeshRenderer::render(const OrthoCamera& camera, int max_tile_px) {
+namespace {
+
+bool has_gl_extension(const char* name) {
+  GLint count = 0;
+  glGetIntegerv(GL_NUM_EXTENSIONS, &count);
+  for (GLint i = 0; i < count; ++i)
+    if (std::strcmp(reinterpret_cast<const char*>(glGetStringi(GL_EXTENSIONS, i)), name) == 0)
+      return true;
+  return false;
+}
+
+}  // namespace
+
+RgbaImage MeshRenderer::render(const OrthoCamera& camera, int max_tile_px, bool sixteen_bit) {
   validate_camera(camera);
   const Gl& gl = *gl_;
   if (!camera.world_to_view.isApprox(gl.world_to_view, 1e-12))
@@ -518,7 +531,10 @@ RgbaImage MeshRenderer::render(const OrthoCamera& camera, int max_tile_px) {
   Framebuffer fbo;
   glGenRenderbuffers(1, &colour.id);
   glBindRenderbuffer(GL_RENDERBUFFER, colour.id);
-  glRenderbufferStorage(GL_RENDERBUFFER, GL_RGBA8, tile_w, tile_h);
+  if (sixteen_bit && !has_gl_extension("GL_EXT_color_buffer_float"))
+    throw ProcessingError(
+        "render: 16-bit output needs GL_EXT_color_buffer_float, which this GL lacks; write 8-bit");
+  glRenderbufferStorage(GL_RENDERBUFFER, sixteen_bit ? GL_RGBA16F : GL_RGBA8, tile_w, tile_h);
   glGenRenderbuffers(1, &depth.id);
   glBindRenderbuffer(GL_RENDERBUFFER, depth.id);
   glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT24, tile_w, tile_h);
@@ -567,8 +583,10 @@ RgbaImage MeshRenderer::render(const OrthoCamera& camera, int max_tile_px) {
   RgbaImage image;
   image.width = camera.width_px;
   image.height = camera.height_px;
-  image.rgba.resize(static_cast<std::size_t>(image.width) * image.height * 4);
+  const std::size_t samples = static_cast<std::size_t>(image.width) * image.height * 4;
+  (sixteen_bit ? image.rgba16.resize(samples) : image.rgba.resize(samples));
   std::vector<std::uint8_t> tile_pixels(static_cast<std::size_t>(tile_w) * tile_h * 4);
+  std::vector<float> tile_floats(sixteen_bit ? tile_pixels.size() : 0);
   // Whole image: view mm → pixels (x right, y up from the bottom edge), clip z.
   const double p = camera.pixel_mm;
   Eigen::Matrix4d view_to_pixel = Eigen::Matrix4d::Identity();
@@ -597,15 +615,26 @@ RgbaImage MeshRenderer::render(const OrthoCamera& camera, int max_tile_px) {
       check_gl("main pass");
       const auto drawn = std::chrono::steady_clock::now();
       stats_.draw_s += seconds_since(start);
-      glReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, tile_pixels.data());
+      if (sixteen_bit)
+        glReadPixels(0, 0, w, h, GL_RGBA, GL_FLOAT, tile_floats.data());
+      else
+        glReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, tile_pixels.data());
       check_gl("read-back");
       // GL rows run bottom-up; images here run top-down.
-      for (int r = 0; r < h; ++r)
-        std::memcpy(
-            image.rgba.data() +
-                (static_cast<std::size_t>(image.height - 1 - (y0 + r)) * image.width + x0) * 4,
-            tile_pixels.data() + static_cast<std::size_t>(r) * w * 4,
-            static_cast<std::size_t>(w) * 4);
+      for (int r = 0; r < h; ++r) {
+        const std::size_t to =
+            (static_cast<std::size_t>(image.height - 1 - (y0 + r)) * image.width + x0) * 4;
+        const std::size_t from = static_cast<std::size_t>(r) * w * 4;
+        if (sixteen_bit)
+          std::transform(
+              tile_floats.begin() + from, tile_floats.begin() + from + w * 4,
+              image.rgba16.begin() + to, [](float v) {
+                return static_cast<std::uint16_t>(std::lround(std::clamp(v, 0.f, 1.f) * 65535.f));
+              });
+        else
+          std::memcpy(image.rgba.data() + to, tile_pixels.data() + from,
+                      static_cast<std::size_t>(w) * 4);
+      }
       stats_.readback_s += seconds_since(drawn);
       ++stats_.tiles;
     }

@@ -45,9 +45,11 @@ struct OrthoCamera {
 };
 
 // 8-bit RGBA, straight (not premultiplied) alpha, rows from the top; alpha 0 where empty.
+// A 16-bit render fills rgba16 (0…65535) instead of rgba.
 struct RgbaImage {
   int width = 0, height = 0;
   std::vector<std::uint8_t> rgba;
+  std::vector<std::uint16_t> rgba16;
   const std::uint8_t* pixel(int column, int row_from_top) const {
     return rgba.data() + (static_cast<std::size_t>(row_from_top) * width + column) * 4;
   }
@@ -73,8 +75,9 @@ class MeshRenderer {
 
   // The image `camera` frames (its world_to_view must be the renderer's). Drawn in tiles of at
   // most `max_tile_px` per side (0: the GL's renderbuffer/viewport limit); the result does not
-  // depend on the tiling.
-  RgbaImage render(const OrthoCamera& camera, int max_tile_px = 0);
+  // depend on the tiling. `sixteen_bit`: drawn in half floats (EXT_color_buffer_float) and read
+  // back into rgba16.
+  RgbaImage render(const OrthoCamera& camera, int max_tile_px = 0, bool sixteen_bit = false);
   const RenderStats& last_stats() const { return stats_; }
 
  private:
