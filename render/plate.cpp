@@ -205,9 +205,10 @@ PlateFiles compose_plate(const Canvas& canvas, const std::vector<PlacedView>& vi
   PngStream png(files.png, canvas.width, canvas.height, settings.dpi,
                 grey16 ? PngFormat::kGrey16 : PngFormat::kRgb8);
   const auto width = static_cast<std::size_t>(canvas.width);
-  const int band_rows = settings.band_rows > 0
-                            ? settings.band_rows
-                            : std::max(1, static_cast<int>((std::size_t{32} << 20) / (width * 16)));
+  const int band_rows =
+      settings.band_rows > 0
+          ? settings.band_rows
+          : std::max(1, static_cast<int>((std::size_t{128} << 20) / (width * 16)));
   std::vector<std::uint16_t> rgb(width * 3 * band_rows);
   std::vector<std::uint8_t> row8(width * 3);
   std::vector<std::uint16_t> row16(width);

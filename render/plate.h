@@ -18,7 +18,7 @@ struct PlateSettings {
   std::filesystem::path materials_file;  // config/materials.xml
   bool section_on_right = true;          // German/Austrian convention; false = British
   bool grey16 = false;  // plate.png as 16-bit grey (the view read back from GL in float)
-  int band_rows = 0;    // rows composed at a time (0: about 32 MiB worth); bounds memory
+  int band_rows = 0;    // rows composed at a time (0: about 128 MiB worth); bounds memory
 };
 
 struct PlateInput {
