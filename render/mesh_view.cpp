@@ -50,7 +50,9 @@ void main() {
 // x from dp/du, but every preset is isotropic (Cx = Cy), and then
 //   Cxy (wo.x wi.x + wo.y wi.y) = Cxy (wo·wi − wo.z wi.z)
 // holds in any tangent frame, so no tangent is needed.
-constexpr const char* kFragmentShader = R"(#version 300 es
+// Without `discard` in the shader (ROUND_POINTS undefined) llvmpipe can test depth before
+// shading, which matters for a vessel's hidden inner wall: the half-view cut is a scissor.
+constexpr const char* kFragmentShaderBody = R"(
 precision highp float;
 precision highp sampler2DShadow;
 const int MAX_LOBES = 4;
@@ -69,8 +71,6 @@ uniform sampler2DShadow u_shadow_map;
 uniform float u_ambient;
 uniform float u_exposure;
 uniform bool u_srgb_encode;
-uniform vec2 u_keep_x;
-uniform bool u_round_points;
 in vec3 v_view_position;
 in vec3 v_view_normal;
 in vec4 v_shadow_clip;
@@ -101,8 +101,9 @@ float key_light_visibility() {
 }
 
 void main() {
-  if (v_view_position.x < u_keep_x.x || v_view_position.x > u_keep_x.y) discard;
-  if (u_round_points && length(gl_PointCoord - 0.5) > 0.5) discard;
+#ifdef ROUND_POINTS
+  if (length(gl_PointCoord - 0.5) > 0.5) discard;
+#endif
   vec3 wo = vec3(0.0, 0.0, 1.0);  // orthographic: the viewer is along +z everywhere
   vec3 n = normalize(v_view_normal);
   if (dot(n, wo) < 0.0) n = -n;   // a surface seen from behind is shaded on its visible side
@@ -255,9 +256,15 @@ void validate_camera(const OrthoCamera& camera) {
 // Compiled once per process: the context lives as long as the process, and compiling costs
 // more than a small render on llvmpipe. Only called with the context current (lock held).
 // Never destroyed: at exit no context is current to delete them in.
-const Program& shading_program() {
-  static Program& program = *new Program;
-  if (!program.id) link(program, kVertexShader, kFragmentShader);
+const Program& shading_program(bool round_points) {
+  static Program& for_triangles = *new Program;
+  static Program& for_points = *new Program;
+  Program& program = round_points ? for_points : for_triangles;
+  if (!program.id) {
+    const std::string source = std::string("#version 300 es\n") +
+                               (round_points ? "#define ROUND_POINTS\n" : "") + kFragmentShaderBody;
+    link(program, kVertexShader, source.c_str());
+  }
   return program;
 }
 
@@ -547,7 +554,7 @@ RgbaImage MeshRenderer::render(const OrthoCamera& camera, int max_tile_px, bool 
         fmt::format("render: a {}×{} px framebuffer is incomplete (out of memory?); lower the dpi",
                     tile_w, tile_h));
 
-  const Program& program = shading_program();
+  const Program& program = shading_program(gl.point_spacing > 0);
   glUseProgram(program.id);
   const Eigen::Matrix4f world_to_view = gl.world_to_view.matrix().cast<float>();
   glUniformMatrix4fv(program.uniform("u_world_to_view"), 1, GL_FALSE, world_to_view.data());
@@ -555,7 +562,6 @@ RgbaImage MeshRenderer::render(const OrthoCamera& camera, int max_tile_px, bool 
                      gl.world_to_shadow_clip.data());
   glUniform1f(program.uniform("u_point_size"),
               gl.point_spacing > 0 ? point_size_px(gl.point_spacing, camera.pixel_mm) : 1.0f);
-  glUniform1i(program.uniform("u_round_points"), gl.point_spacing > 0);
   set_material_uniforms(program, gl.material);
   glUniform1i(program.uniform("u_light_count"), static_cast<GLint>(gl.lighting.lights.size()));
   glUniform1i(program.uniform("u_shadow_light"), gl.shadow_light);
@@ -569,10 +575,13 @@ RgbaImage MeshRenderer::render(const OrthoCamera& camera, int max_tile_px, bool 
   glUniform1f(program.uniform("u_ambient"), static_cast<GLfloat>(gl.lighting.ambient));
   glUniform1f(program.uniform("u_exposure"), static_cast<GLfloat>(gl.lighting.exposure));
   glUniform1i(program.uniform("u_srgb_encode"), gl.lighting.srgb_encode);
-  // Clamp infinities: GLSL ES need not represent them in uniforms.
-  const auto finite = [](double v) { return static_cast<GLfloat>(std::clamp(v, -1e30, 1e30)); };
-  glUniform2f(program.uniform("u_keep_x"), finite(camera.keep_x_min_mm),
-              finite(camera.keep_x_max_mm));
+  // Columns whose pixel centres lie within [keep_x_min_mm, keep_x_max_mm].
+  const auto column_of = [&](double x_mm) {
+    return std::clamp((x_mm - camera.left_mm) / camera.pixel_mm - 0.5, -1.0,
+                      static_cast<double>(camera.width_px));
+  };
+  const int keep_from = static_cast<int>(std::ceil(column_of(camera.keep_x_min_mm)));
+  const int keep_to = static_cast<int>(std::floor(column_of(camera.keep_x_max_mm))) + 1;
   glEnable(GL_DEPTH_TEST);
   glDepthFunc(GL_LESS);
   glDisable(GL_CULL_FACE);  // sherds are open shells: both sides of a triangle can be seen
@@ -609,8 +618,14 @@ RgbaImage MeshRenderer::render(const OrthoCamera& camera, int max_tile_px, bool 
       const auto start = std::chrono::steady_clock::now();
       glUniform2f(program.uniform("u_tile_origin_px"), static_cast<GLfloat>(x0),
                   static_cast<GLfloat>(y0));
+      glDisable(GL_SCISSOR_TEST);  // clear the whole tile
       glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+      const int scissor_from = std::clamp(keep_from - x0, 0, w);
+      const int scissor_to = std::clamp(keep_to - x0, 0, w);
+      glEnable(GL_SCISSOR_TEST);
+      glScissor(scissor_from, 0, std::max(0, scissor_to - scissor_from), h);
       draw(gl.buffers);
+      glDisable(GL_SCISSOR_TEST);
       glFinish();
       check_gl("main pass");
       const auto drawn = std::chrono::steady_clock::now();

@@ -39,7 +39,8 @@ struct OrthoCamera {
   double left_mm = 0.0, bottom_mm = 0.0;
   double pixel_mm = 25.4 / 600.0;
   int width_px = 0, height_px = 0;
-  // Fragments with view x outside [keep_x_min_mm, keep_x_max_mm] are discarded (half views).
+  // Pixels whose centres lie outside view x ∈ [keep_x_min_mm, keep_x_max_mm] stay empty (half
+  // views; a scissor, exact to the pixel).
   double keep_x_min_mm = -std::numeric_limits<double>::infinity();
   double keep_x_max_mm = std::numeric_limits<double>::infinity();
 };
