@@ -100,7 +100,7 @@ double text_width_mm(const std::vector<std::string>& lines) {
   Cairo cr(cairo_create(scratch.get()), cairo_destroy);
   cairo_select_font_face(cr.get(), "sans-serif", CAIRO_FONT_SLANT_NORMAL, CAIRO_FONT_WEIGHT_NORMAL);
   cairo_set_font_size(cr.get(), kFontMm);
-  double width = kScaleBarMm + 15.0;
+  double width = kScaleBarMm + 35.0;  // room for the rim-percent diagram
   for (const std::string& line : lines) {
     cairo_text_extents_t extents;
     cairo_text_extents(cr.get(), line.c_str(), &extents);
@@ -183,6 +183,24 @@ void draw_footer(cairo_t* cr, const Canvas& canvas, double u, double v,
   for (std::size_t i = 0; i < lines.size(); ++i)
     text(cr, canvas, u, bar_v - kScaleBarHeightMm - 4.0 - kLineMm * static_cast<double>(i),
          lines[i]);
+}
+
+// The preserved share of the rim as an arc on a thin circle (clockwise from the top) with its
+// percentage, right of the scale bar's end, from the footer's top-left corner (u, v).
+void draw_rim_diagram(cairo_t* cr, const Canvas& canvas, double u, double v, double percent) {
+  const double radius = 3.0, cu = u + kScaleBarMm + 12.0, cv = v - 6.0;
+  cairo_set_source_rgb(cr, 0, 0, 0);
+  cairo_new_path(cr);
+  cairo_set_line_width(cr, 0.2);
+  cairo_arc(cr, cu, cv, radius, 0.0, 2 * std::numbers::pi);
+  cairo_stroke(cr);
+  cairo_set_line_width(cr, 0.9);
+  // User space has v up, so clockwise on paper is decreasing angle.
+  const double top = std::numbers::pi / 2;
+  cairo_arc_negative(cr, cu, cv, radius, top,
+                     top - 2 * std::numbers::pi * std::clamp(percent, 0.0, 100.0) / 100.0);
+  cairo_stroke(cr);
+  text(cr, canvas, cu + radius + 1.5, cv - 1.0, fmt::format("rim {:.0f} %", percent));
 }
 
 // A rendered view and where it goes on the plate.
@@ -352,6 +370,8 @@ PlateFiles axial_plate(const PlateInput& input, const PlateSettings& settings,
       [&](cairo_t* cr, const Canvas& band) {
         draw_profile(cr, drawing);
         draw_footer(cr, band, content.u_min, footer_v, lines);
+        if (settings.rim_percent_diagram && analysis.measurements.rim_percent)
+          draw_rim_diagram(cr, band, content.u_min, footer_v, *analysis.measurements.rim_percent);
       },
       settings, dir);
 }

@@ -19,6 +19,7 @@ struct PlateSettings {
   bool section_on_right = true;          // German/Austrian convention; false = British
   bool grey16 = false;  // plate.png as 16-bit grey (the view read back from GL in float)
   int band_rows = 0;    // rows composed at a time (0: about 128 MiB worth); bounds memory
+  bool rim_percent_diagram = true;  // the preserved rim share as an arc, where it is known
 };
 
 struct PlateInput {

@@ -135,6 +135,7 @@ struct Svg {
   double width_mm = 0, height_mm = 0;
   std::array<double, 4> view_box{};
   std::vector<std::array<double, 2>> section;
+  std::vector<std::array<double, 2>> scale_cells;  // x, width of each <rect> of the scale bar
 };
 
 double mm_attribute(const std::string& value) {
@@ -166,6 +167,11 @@ Svg read_svg(const std::filesystem::path& file) {
       double x, y;
       char comma;
       while (points >> x >> comma >> y) svg.section.push_back({x, y});
+    } else if (node->type == XML_ELEMENT_NODE && attribute(node, "id") == "scale-bar") {
+      for (xmlNode* cell = node->children; cell; cell = cell->next)
+        if (cell->type == XML_ELEMENT_NODE)
+          svg.scale_cells.push_back(
+              {std::stod(attribute(cell, "x")), std::stod(attribute(cell, "width"))});
     }
   xmlFreeDoc(doc);
   return svg;
@@ -192,6 +198,12 @@ void expect_section_extent(const Svg& svg, double x_min, double x_max) {
   EXPECT_LE(svg.view_box[1], -40.0);
   EXPECT_GE(svg.view_box[1] + svg.view_box[3], 0.0);
   EXPECT_LT(svg.width_mm, 100.0 + 40.0) << "no more than a margin around the drawing";
+  // A 5 cm scale bar of 1 cm cells, end to end: 50 user units = 50 mm.
+  ASSERT_EQ(svg.scale_cells.size(), 5u);
+  for (std::size_t i = 0; i < 5; ++i) {
+    EXPECT_DOUBLE_EQ(svg.scale_cells[i][1], 10.0);
+    EXPECT_NEAR(svg.scale_cells[i][0], svg.scale_cells[0][0] + 10.0 * i, 1e-3);
+  }
 }
 
 TEST(Plate, SectionOnTheRightInSvg) {
