@@ -4,24 +4,24 @@
 // incl. shadow map, draw, read-back, PNG encode); "plate", the whole plate composed in bands.
 // One JSON object per line.
 //   bench_render [--dpi 300 --dpi 600 --dpi 1200]
-#include <sys/resource.h>
-#include <sys/wait.h>
-#include <unistd.h>
-
-#include <CLI/CLI.hpp>
-#include <chrono>
-#include <cmath>
-#include <filesystem>
-#include <iostream>
-#include <nlohmann/json.hpp>
-#include <numbers>
-
 #include "processing/profile/profile.h"
 #include "render/egl_context.h"
 #include "render/materials.h"
 #include "render/mesh_view.h"
 #include "render/plate.h"
 #include "render/png_writer.h"
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <iostream>
+#include <numbers>
 
 namespace {
 

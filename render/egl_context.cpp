@@ -1,5 +1,7 @@
 #include "render/egl_context.h"
 
+#include "core/errors.h"
+
 #include <EGL/egl.h>
 #include <EGL/eglext.h>
 #include <GLES3/gl3.h>
@@ -8,8 +10,6 @@
 #include <cstring>
 #include <mutex>
 #include <vector>
-
-#include "core/errors.h"
 
 namespace sherd::render {
 namespace {

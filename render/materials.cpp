@@ -1,5 +1,7 @@
 #include "render/materials.h"
 
+#include "core/errors.h"
+
 #include <fmt/format.h>
 #include <libxml/parser.h>
 #include <libxml/tree.h>
@@ -8,8 +10,6 @@
 #include <cmath>
 #include <cstdlib>
 #include <memory>
-
-#include "core/errors.h"
 
 namespace sherd::render {
 namespace {

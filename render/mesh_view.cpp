@@ -1,5 +1,8 @@
 #include "render/mesh_view.h"
 
+#include "core/errors.h"
+#include "render/egl_context.h"
+
 #include <GLES3/gl3.h>
 #include <fmt/format.h>
 
@@ -9,9 +12,6 @@
 #include <cmath>
 #include <cstring>
 #include <string>
-
-#include "core/errors.h"
-#include "render/egl_context.h"
 
 namespace sherd::render {
 namespace {

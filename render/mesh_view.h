@@ -3,14 +3,14 @@
 // Images larger than the GL's renderbuffer/viewport limits are drawn in tiles.
 #pragma once
 
+#include "core/types.h"
+#include "render/egl_context.h"
+#include "render/materials.h"
+
 #include <cstdint>
 #include <limits>
 #include <memory>
 #include <vector>
-
-#include "core/types.h"
-#include "render/egl_context.h"
-#include "render/materials.h"
 
 namespace sherd::render {
 

@@ -1,5 +1,11 @@
 #include "render/plate.h"
 
+#include "core/errors.h"
+#include "render/materials.h"
+#include "render/mesh_view.h"
+#include "render/png_writer.h"
+#include "render/profile_drawing.h"
+
 #include <cairo.h>
 #include <fmt/format.h>
 
@@ -11,12 +17,6 @@
 #include <memory>
 #include <numbers>
 #include <vector>
-
-#include "core/errors.h"
-#include "render/materials.h"
-#include "render/mesh_view.h"
-#include "render/png_writer.h"
-#include "render/profile_drawing.h"
 
 namespace sherd::render {
 namespace {

@@ -4,11 +4,11 @@
 // The plate is composed and written in bands of rows, so memory stays bounded at any dpi.
 #pragma once
 
-#include <filesystem>
-#include <string>
-
 #include "core/types.h"
 #include "processing/profile/profile.h"
+
+#include <filesystem>
+#include <string>
 
 namespace sherd::render {
 

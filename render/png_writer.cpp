@@ -1,5 +1,7 @@
 #include "render/png_writer.h"
 
+#include "core/errors.h"
+
 #include <fmt/format.h>
 #include <png.h>
 
@@ -8,8 +10,6 @@
 #include <cmath>
 #include <csetjmp>
 #include <cstring>
-
-#include "core/errors.h"
 
 namespace sherd::render {
 namespace {

@@ -1,12 +1,12 @@
 #include "render/profile_drawing.h"
 
+#include "core/errors.h"
+
 #include <fmt/format.h>
 
 #include <algorithm>
 #include <cmath>
 #include <fstream>
-
-#include "core/errors.h"
 
 namespace sherd::render {
 namespace {

@@ -3,11 +3,11 @@
 // Computed once, drawn by cairo into plate.png and written by hand as profile.svg.
 #pragma once
 
+#include "processing/profile/profile.h"
+
 #include <filesystem>
 #include <optional>
 #include <string>
-
-#include "processing/profile/profile.h"
 
 namespace sherd::render {
 

@@ -3,13 +3,13 @@
 // libglvnd pointed at no vendor library.
 #include "render/egl_context.h"
 
+#include "core/errors.h"
+
 #include <gtest/gtest.h>
 
 #include <cstdlib>
 #include <filesystem>
 #include <string>
-
-#include "core/errors.h"
 
 namespace sherd::render {
 namespace {

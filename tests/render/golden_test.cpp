@@ -2,6 +2,11 @@
 // difference with tests/render/golden/<preset>.png (viewed by a person when generated; small
 // driver differences stay well inside the tolerance, a changed BRDF, light or preset does not).
 // Regenerate with SHERD_UPDATE_GOLDENS=1 after a deliberate change, and look at the images.
+#include "render/materials.h"
+#include "render/mesh_view.h"
+#include "render/png_writer.h"
+#include "test_meshes.h"
+
 #include <gtest/gtest.h>
 #include <png.h>
 
@@ -9,11 +14,6 @@
 #include <cstdlib>
 #include <filesystem>
 #include <numbers>
-
-#include "render/materials.h"
-#include "render/mesh_view.h"
-#include "render/png_writer.h"
-#include "test_meshes.h"
 
 namespace sherd::render {
 namespace {

@@ -2,6 +2,8 @@
 // in ../shared/data/lafortune-pbrt.md; malformed files and unknown presets give clear messages.
 #include "render/materials.h"
 
+#include "core/errors.h"
+
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -9,8 +11,6 @@
 #include <map>
 #include <sstream>
 #include <string>
-
-#include "core/errors.h"
 
 namespace sherd::render {
 namespace {

@@ -3,16 +3,16 @@
 // analytic geometry puts it.
 #include "render/mesh_view.h"
 
+#include "core/errors.h"
+#include "render/materials.h"
+#include "test_meshes.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <numbers>
-
-#include "core/errors.h"
-#include "render/materials.h"
-#include "test_meshes.h"
 
 namespace sherd::render {
 namespace {

@@ -2,6 +2,9 @@
 // and profile.svg read back with libxml2 (mm units, viewBox, section polygon).
 #include "render/plate.h"
 
+#include "core/errors.h"
+#include "test_meshes.h"
+
 #include <gtest/gtest.h>
 #include <libxml/parser.h>
 #include <libxml/tree.h>
@@ -12,9 +15,6 @@
 #include <filesystem>
 #include <numbers>
 #include <sstream>
-
-#include "core/errors.h"
-#include "test_meshes.h"
 
 namespace sherd::render {
 namespace {
