@@ -372,6 +372,7 @@ StationConfig load_station_config(const fs::path& file) {
   render.read("material", rs.material);
   const fs::path materials = render.read_path("materials_file").value_or("materials.xml");
   render.read("section_side", rs.section_side, {"right", "left"});
+  render.read("png", rs.png, {"rgb8", "grey16"});
   render.reject_unknown_keys();
   // Relative to the config file, so that a config and its materials travel together.
   rs.materials_file = (config.source.parent_path() / materials).lexically_normal();

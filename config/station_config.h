@@ -112,6 +112,7 @@ struct RenderSettings {
   std::string material = "clay";              // a preset from the materials file
   std::filesystem::path materials_file;       // relative → to the directory of the config file
   std::string section_side = "right";         // right (German/Austrian) | left (British)
+  std::string png = "rgb8";                   // rgb8 (8-bit colour) | grey16 (16-bit grey)
 };
 
 struct StationConfig {

@@ -41,7 +41,8 @@ registration::Params registration_params(const config::RegistrationSettings& s) 
 }
 
 render::PlateSettings plate_settings(const config::RenderSettings& s) {
-  return render::PlateSettings{s.dpi, s.material, s.materials_file, s.section_side != "left"};
+  return render::PlateSettings{s.dpi, s.material, s.materials_file, s.section_side != "left",
+                               s.png == "grey16"};
 }
 
 nlohmann::json view_figures(const registration::ViewResult& v) {

@@ -119,8 +119,8 @@ bool try_surfaceless_platform(const char* client_extensions, SharedContext& out,
       "EGL_MESA_platform_surfaceless", out, why);
 }
 
-std::mutex& context_mutex() {
-  static std::mutex mutex;
+std::recursive_mutex& context_mutex() {
+  static std::recursive_mutex mutex;
   return mutex;
 }
 
@@ -146,21 +146,28 @@ const SharedContext& shared_context() {
 
 }  // namespace
 
+// Nesting on one thread (a plate holds a renderer per view) makes current only once.
+thread_local int lock_depth = 0;
+
 GlContextLock::GlContextLock() {
   context_mutex().lock();
+  if (lock_depth++ > 0) return;
   try {
     const SharedContext& context = shared_context();
     if (!eglMakeCurrent(context.display, EGL_NO_SURFACE, EGL_NO_SURFACE, context.context))
       throw ProcessingError(fmt::format("render: eglMakeCurrent failed (0x{:x})", eglGetError()));
   } catch (...) {
+    --lock_depth;
     context_mutex().unlock();
     throw;
   }
 }
 
 GlContextLock::~GlContextLock() {
-  const SharedContext& context = shared_context();
-  eglMakeCurrent(context.display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
+  if (--lock_depth == 0) {
+    const SharedContext& context = shared_context();
+    eglMakeCurrent(context.display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
+  }
   context_mutex().unlock();
 }
 

@@ -7,8 +7,9 @@
 namespace sherd::render {
 
 // Makes the shared context current on this thread for the lifetime of the lock; one thread
-// renders at a time. Throws sherd::ProcessingError naming what is missing when neither the EGL
-// device platform (a GPU) nor Mesa's surfaceless platform (llvmpipe on CI) gives a context.
+// renders at a time; the same thread may nest locks. Throws sherd::ProcessingError naming what is
+// missing when neither the EGL device platform (a GPU) nor Mesa's surfaceless platform (llvmpipe on
+// CI) gives a context.
 class GlContextLock {
  public:
   GlContextLock();

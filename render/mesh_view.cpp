@@ -8,17 +8,25 @@
 
 #include <algorithm>
 #include <array>
+#include <chrono>
 #include <cmath>
+#include <cstring>
 #include <string>
 
 namespace sherd::render {
 namespace {
 
-constexpr int kMaxLights = 4;
 constexpr int kShadowMapSize = 2048;
 
 constexpr const char* kVertexShader = R"(#version 300 es
+// Shadow pass: world → clip. Main pass: world → (pixel column, pixel row counted from the
+// bottom of the whole image, clip z, 1); the tile's origin is subtracted exactly (whole pixels)
+// and the viewport (−V/2, −V/2, V, V) with V a power of two maps x·2/V back to x exactly, so
+// every tile rasterises at the same sample positions as one pass would.
 uniform mat4 u_world_to_clip;
+uniform bool u_tiled;
+uniform vec2 u_tile_origin_px;
+uniform float u_px_to_ndc;
 uniform mat4 u_world_to_view;
 uniform mat4 u_world_to_shadow_clip;
 uniform float u_point_size;
@@ -33,6 +41,7 @@ void main() {
   v_view_normal = mat3(u_world_to_view) * a_normal;
   v_shadow_clip = u_world_to_shadow_clip * p;
   gl_Position = u_world_to_clip * p;
+  if (u_tiled) gl_Position.xy = (gl_Position.xy - u_tile_origin_px) * u_px_to_ndc;
   gl_PointSize = u_point_size;
 }
 )";
@@ -41,27 +50,27 @@ void main() {
 // x from dp/du, but every preset is isotropic (Cx = Cy), and then
 //   Cxy (wo.x wi.x + wo.y wi.y) = Cxy (wo·wi − wo.z wi.z)
 // holds in any tangent frame, so no tangent is needed.
-constexpr const char* kFragmentShader = R"(#version 300 es
+// Without `discard` in the shader (ROUND_POINTS undefined) llvmpipe can test depth before
+// shading, which matters for a vessel's hidden inner wall: the half-view cut is a scissor.
+constexpr const char* kFragmentShaderBody = R"(
 precision highp float;
 precision highp sampler2DShadow;
 const int MAX_LOBES = 4;
-const int MAX_LIGHTS = 4;
 const float PI = 3.14159265358979;
 uniform vec3 u_diffuse;
 uniform int u_lobe_count;
 uniform vec3 u_cxy[MAX_LOBES];
 uniform vec3 u_cz[MAX_LOBES];
 uniform vec3 u_exponent[MAX_LOBES];
+// Light i is texel (i, 0): unit direction towards the light (view frame), irradiance. A texture
+// rather than a uniform array so that the number of lights has no small fixed bound.
+uniform highp sampler2D u_lights;
 uniform int u_light_count;
-uniform vec3 u_towards_light[MAX_LIGHTS];
-uniform float u_light_intensity[MAX_LIGHTS];
 uniform int u_shadow_light;
 uniform sampler2DShadow u_shadow_map;
 uniform float u_ambient;
 uniform float u_exposure;
 uniform bool u_srgb_encode;
-uniform vec2 u_keep_x;
-uniform bool u_round_points;
 in vec3 v_view_position;
 in vec3 v_view_normal;
 in vec4 v_shadow_clip;
@@ -92,18 +101,20 @@ float key_light_visibility() {
 }
 
 void main() {
-  if (v_view_position.x < u_keep_x.x || v_view_position.x > u_keep_x.y) discard;
-  if (u_round_points && length(gl_PointCoord - 0.5) > 0.5) discard;
+#ifdef ROUND_POINTS
+  if (length(gl_PointCoord - 0.5) > 0.5) discard;
+#endif
   vec3 wo = vec3(0.0, 0.0, 1.0);  // orthographic: the viewer is along +z everywhere
   vec3 n = normalize(v_view_normal);
   if (dot(n, wo) < 0.0) n = -n;   // a surface seen from behind is shaded on its visible side
   vec3 radiance = u_ambient * u_diffuse;
   for (int i = 0; i < u_light_count; ++i) {
-    vec3 wi = normalize(u_towards_light[i]);
+    vec4 light = texelFetch(u_lights, ivec2(i, 0), 0);
+    vec3 wi = light.xyz;
     float cos_i = dot(n, wi);
     if (cos_i <= 0.0) continue;   // wo and wi on opposite sides: no reflection
     float visibility = i == u_shadow_light ? key_light_visibility() : 1.0;
-    radiance += lafortune(n, wo, wi) * (cos_i * u_light_intensity[i] * visibility);
+    radiance += lafortune(n, wo, wi) * (cos_i * light.w * visibility);
   }
   vec3 colour = clamp(radiance * u_exposure, 0.0, 1.0);
   if (u_srgb_encode) colour = pow(colour, vec3(1.0 / 2.2));
@@ -215,7 +226,7 @@ std::vector<Vec3f> vertex_normals(const Mesh& mesh) {
   return normals;
 }
 
-void validate(const Mesh& mesh, const OrthoCamera& camera, const Lighting& lighting) {
+void validate_mesh(const Mesh& mesh, const Lighting& lighting) {
   if (mesh.empty()) throw InputError("render: the mesh to render has no vertices");
   for (const Vec3f& p : mesh.vertices.points)
     if (!p.allFinite())
@@ -227,21 +238,33 @@ void validate(const Mesh& mesh, const OrthoCamera& camera, const Lighting& light
     if (t[0] >= n || t[1] >= n || t[2] >= n)
       throw InputError(fmt::format("render: a triangle refers to vertex {} of a {}-vertex mesh",
                                    std::max({t[0], t[1], t[2]}), n));
+  if (std::count_if(lighting.lights.begin(), lighting.lights.end(),
+                    [](const DirectionalLight& l) { return l.casts_shadow; }) > 1)
+    throw InputError("render: at most one light may cast shadows");
+  for (const DirectionalLight& light : lighting.lights)
+    if (!light.towards_light.allFinite() || light.towards_light.squaredNorm() == 0.0 ||
+        !std::isfinite(light.intensity))
+      throw InputError("render: a light has no direction or a non-finite intensity");
+}
+
+void validate_camera(const OrthoCamera& camera) {
   if (camera.width_px <= 0 || camera.height_px <= 0 || !(camera.pixel_mm > 0.0))
     throw InputError(fmt::format("render: bad image size {}×{} px at {} mm/px", camera.width_px,
                                  camera.height_px, camera.pixel_mm));
-  if (lighting.lights.size() > kMaxLights ||
-      std::count_if(lighting.lights.begin(), lighting.lights.end(),
-                    [](const DirectionalLight& l) { return l.casts_shadow; }) > 1)
-    throw InputError(fmt::format("render: at most {} lights, one casting shadows", kMaxLights));
 }
 
 // Compiled once per process: the context lives as long as the process, and compiling costs
 // more than a small render on llvmpipe. Only called with the context current (lock held).
 // Never destroyed: at exit no context is current to delete them in.
-const Program& shading_program() {
-  static Program& program = *new Program;
-  if (!program.id) link(program, kVertexShader, kFragmentShader);
+const Program& shading_program(bool round_points) {
+  static Program& for_triangles = *new Program;
+  static Program& for_points = *new Program;
+  Program& program = round_points ? for_points : for_triangles;
+  if (!program.id) {
+    const std::string source = std::string("#version 300 es\n") +
+                               (round_points ? "#define ROUND_POINTS\n" : "") + kFragmentShaderBody;
+    link(program, kVertexShader, source.c_str());
+  }
   return program;
 }
 
@@ -254,7 +277,7 @@ const Program& shadow_program() {
 struct MeshBuffers {
   VertexArray vao;
   Buffer positions, normals, indices;
-  GLsizei index_count = 0;
+  GLsizei vertex_count = 0, index_count = 0;
 };
 
 void upload(const Mesh& mesh, MeshBuffers& buffers) {
@@ -272,6 +295,7 @@ void upload(const Mesh& mesh, MeshBuffers& buffers) {
   glBufferData(GL_ARRAY_BUFFER, normals.size() * sizeof(Vec3f), normals.data(), GL_STATIC_DRAW);
   glVertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, sizeof(Vec3f), nullptr);
   glEnableVertexAttribArray(1);
+  buffers.vertex_count = static_cast<GLsizei>(mesh.vertices.size());
   if (!mesh.triangles.empty()) {
     glGenBuffers(1, &buffers.indices.id);
     glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, buffers.indices.id);
@@ -282,12 +306,12 @@ void upload(const Mesh& mesh, MeshBuffers& buffers) {
   check_gl("vertex upload");
 }
 
-void draw(const Mesh& mesh, const MeshBuffers& buffers) {
+void draw(const MeshBuffers& buffers) {
   glBindVertexArray(buffers.vao.id);
   if (buffers.index_count > 0)
     glDrawElements(GL_TRIANGLES, buffers.index_count, GL_UNSIGNED_INT, nullptr);
   else
-    glDrawArrays(GL_POINTS, 0, static_cast<GLsizei>(mesh.vertices.size()));
+    glDrawArrays(GL_POINTS, 0, buffers.vertex_count);
 }
 
 // Sample spacing of a point set, for the point size: its points spread over roughly the two
@@ -298,11 +322,16 @@ double point_spacing_mm(const Cloud& cloud) {
   return std::sqrt(std::max(e[2] * e[1], 1e-6) / static_cast<double>(cloud.size()));
 }
 
+// Points are drawn about 1.5 sample spacings wide (clamped to what GL ES guarantees).
+float point_size_px(double spacing_mm, double pixel_mm) {
+  return static_cast<float>(std::clamp(1.5 * spacing_mm / pixel_mm, 1.0, 64.0));
+}
+
 // The key light's shadow map: depth of the mesh seen along the light, orthographic over the
 // mesh's bounding sphere. Returns world → shadow clip.
 Eigen::Matrix4f render_shadow_map(const Mesh& mesh, const MeshBuffers& buffers,
                                   const Pose& world_to_view, const Vec3d& towards_light_view,
-                                  float point_size, Texture& depth) {
+                                  double point_spacing, Texture& depth) {
   const Box3 box = Box3::of(mesh.vertices);
   const Vec3d centre = 0.5 * (box.min + box.max);
   const double radius = std::max(0.5 * box.extent().norm(), 1e-3);
@@ -339,7 +368,9 @@ Eigen::Matrix4f render_shadow_map(const Mesh& mesh, const MeshBuffers& buffers,
   const Program& program = shadow_program();
   glUseProgram(program.id);
   glUniformMatrix4fv(program.uniform("u_world_to_clip"), 1, GL_FALSE, world_to_shadow_clip.data());
-  glUniform1f(program.uniform("u_point_size"), point_size);
+  glUniform1f(program.uniform("u_point_size"),
+              point_size_px(point_spacing, 2.0 * radius / kShadowMapSize));
+  glUniform1i(program.uniform("u_tiled"), 0);
   glViewport(0, 0, kShadowMapSize, kShadowMapSize);
   glEnable(GL_DEPTH_TEST);
   glDepthFunc(GL_LESS);
@@ -347,112 +378,39 @@ Eigen::Matrix4f render_shadow_map(const Mesh& mesh, const MeshBuffers& buffers,
   // Slope-scaled offset pushes the stored depth behind the surface: no self-shadowing acne.
   glEnable(GL_POLYGON_OFFSET_FILL);
   glPolygonOffset(2.0f, 4.0f);
-  draw(mesh, buffers);
+  draw(buffers);
   glDisable(GL_POLYGON_OFFSET_FILL);
   check_gl("shadow pass");
   glBindFramebuffer(GL_FRAMEBUFFER, 0);
   return world_to_shadow_clip;
 }
 
-}  // namespace
-
-Lighting drawing_lighting() {
-  Lighting lighting;
-  lighting.lights = {{Vec3d(-1.0, 1.0, 1.2), 2.4, true}, {Vec3d(1.0, 0.2, 0.8), 0.8, false}};
-  lighting.ambient = 0.35;
-  lighting.exposure = 1.0;
-  return lighting;
+// The lights as one RGBA32F texel each (see u_lights in the fragment shader).
+void upload_lights(const Lighting& lighting, Texture& texture) {
+  GLint max_texture = 0;
+  glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_texture);
+  if (lighting.lights.size() > static_cast<std::size_t>(max_texture))
+    throw InputError(fmt::format("render: {} lights; this GL takes at most {}",
+                                 lighting.lights.size(), max_texture));
+  std::vector<GLfloat> texels(4 * std::max<std::size_t>(lighting.lights.size(), 1), 0.f);
+  for (std::size_t i = 0; i < lighting.lights.size(); ++i) {
+    const Vec3d d = lighting.lights[i].towards_light.normalized();
+    texels[4 * i] = static_cast<GLfloat>(d.x());
+    texels[4 * i + 1] = static_cast<GLfloat>(d.y());
+    texels[4 * i + 2] = static_cast<GLfloat>(d.z());
+    texels[4 * i + 3] = static_cast<GLfloat>(lighting.lights[i].intensity);
+  }
+  glGenTextures(1, &texture.id);
+  glBindTexture(GL_TEXTURE_2D, texture.id);
+  glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA32F, static_cast<GLsizei>(texels.size() / 4), 1, 0, GL_RGBA,
+               GL_FLOAT, texels.data());
+  // Float textures are not filterable in ES 3: nearest, read with texelFetch anyway.
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+  glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+  check_gl("light upload");
 }
 
-RgbaImage render_mesh(const Mesh& mesh, const LafortuneMaterial& material,
-                      const OrthoCamera& camera, const Lighting& lighting) {
-  validate(mesh, camera, lighting);
-  if (material.lobes.size() > kMaxLafortuneLobes)
-    throw InputError(fmt::format("render: material '{}' has more than {} lobes", material.name,
-                                 kMaxLafortuneLobes));
-  GlContextLock context;
-
-  GLint max_size = 0, max_viewport[2] = {0, 0};
-  glGetIntegerv(GL_MAX_RENDERBUFFER_SIZE, &max_size);
-  glGetIntegerv(GL_MAX_VIEWPORT_DIMS, max_viewport);
-  max_size = std::min({max_size, max_viewport[0], max_viewport[1]});
-  if (camera.width_px > max_size || camera.height_px > max_size)
-    throw ProcessingError(fmt::format(
-        "render: a {}×{} px image exceeds this GL's limit of {} px per side; lower the dpi",
-        camera.width_px, camera.height_px, max_size));
-
-  MeshBuffers buffers;
-  upload(mesh, buffers);
-  const float point_size =
-      mesh.triangles.empty()
-          ? static_cast<float>(
-                std::clamp(1.5 * point_spacing_mm(mesh.vertices) / camera.pixel_mm, 1.0, 64.0))
-          : 1.0f;
-
-  // Depth range of the mesh in the view, padded so nothing is clipped by the near/far planes.
-  double z_min = std::numeric_limits<double>::infinity(), z_max = -z_min;
-  for (const Vec3f& p : mesh.vertices.points) {
-    const double z = (camera.world_to_view * p.cast<double>()).z();
-    z_min = std::min(z_min, z);
-    z_max = std::max(z_max, z);
-  }
-  const double pad = 1.0 + 0.01 * (z_max - z_min);
-  const Eigen::Matrix4f world_to_view = camera.world_to_view.matrix().cast<float>();
-  const Eigen::Matrix4f world_to_clip =
-      orthographic(camera.left_mm, camera.left_mm + camera.width_px * camera.pixel_mm,
-                   camera.bottom_mm, camera.bottom_mm + camera.height_px * camera.pixel_mm,
-                   z_min - pad, z_max + pad) *
-      world_to_view;
-
-  Texture shadow_map;
-  Eigen::Matrix4f world_to_shadow_clip = Eigen::Matrix4f::Identity();
-  int shadow_light = -1;
-  for (std::size_t i = 0; i < lighting.lights.size(); ++i)
-    if (lighting.lights[i].casts_shadow) {
-      shadow_light = static_cast<int>(i);
-      world_to_shadow_clip =
-          render_shadow_map(mesh, buffers, camera.world_to_view, lighting.lights[i].towards_light,
-                            point_size, shadow_map);
-    }
-  if (shadow_light < 0) {
-    // The sampler must still be complete: a 1×1 map at depth 1 lights everything.
-    glGenTextures(1, &shadow_map.id);
-    glBindTexture(GL_TEXTURE_2D, shadow_map.id);
-    const float far = 1.0f;
-    glTexImage2D(GL_TEXTURE_2D, 0, GL_DEPTH_COMPONENT32F, 1, 1, 0, GL_DEPTH_COMPONENT, GL_FLOAT,
-                 &far);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_COMPARE_MODE, GL_COMPARE_REF_TO_TEXTURE);
-  }
-
-  Renderbuffer colour, depth;
-  Framebuffer fbo;
-  glGenRenderbuffers(1, &colour.id);
-  glBindRenderbuffer(GL_RENDERBUFFER, colour.id);
-  glRenderbufferStorage(GL_RENDERBUFFER, GL_RGBA8, camera.width_px, camera.height_px);
-  glGenRenderbuffers(1, &depth.id);
-  glBindRenderbuffer(GL_RENDERBUFFER, depth.id);
-  glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT24, camera.width_px, camera.height_px);
-  glGenFramebuffers(1, &fbo.id);
-  glBindFramebuffer(GL_FRAMEBUFFER, fbo.id);
-  glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, colour.id);
-  glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth.id);
-  if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
-    throw ProcessingError(
-        fmt::format("render: a {}×{} px framebuffer is incomplete (out of "
-                    "memory?); lower the dpi",
-                    camera.width_px, camera.height_px));
-
-  const Program& program = shading_program();
-  glUseProgram(program.id);
-  glUniformMatrix4fv(program.uniform("u_world_to_clip"), 1, GL_FALSE, world_to_clip.data());
-  glUniformMatrix4fv(program.uniform("u_world_to_view"), 1, GL_FALSE, world_to_view.data());
-  glUniformMatrix4fv(program.uniform("u_world_to_shadow_clip"), 1, GL_FALSE,
-                     world_to_shadow_clip.data());
-  glUniform1f(program.uniform("u_point_size"), point_size);
-  glUniform1i(program.uniform("u_round_points"), mesh.triangles.empty());
-
+void set_material_uniforms(const Program& program, const LafortuneMaterial& material) {
   auto rgb = [](const RgbCoefficients& c) {
     return std::array<GLfloat, 3>{static_cast<GLfloat>(c[0]), static_cast<GLfloat>(c[1]),
                                   static_cast<GLfloat>(c[2])};
@@ -468,53 +426,241 @@ RgbaImage render_mesh(const Mesh& mesh, const LafortuneMaterial& material,
   glUniform3fv(program.uniform("u_cxy"), kMaxLafortuneLobes, cxy[0].data());
   glUniform3fv(program.uniform("u_cz"), kMaxLafortuneLobes, cz[0].data());
   glUniform3fv(program.uniform("u_exponent"), kMaxLafortuneLobes, exponent[0].data());
+}
 
-  std::array<std::array<GLfloat, 3>, kMaxLights> towards{};
-  std::array<GLfloat, kMaxLights> intensity{};
-  for (std::size_t i = 0; i < lighting.lights.size(); ++i) {
-    const Vec3f d = lighting.lights[i].towards_light.cast<float>();
-    towards[i] = {d.x(), d.y(), d.z()};
-    intensity[i] = static_cast<GLfloat>(lighting.lights[i].intensity);
+double seconds_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+}  // namespace
+
+Lighting drawing_lighting() {
+  Lighting lighting;
+  lighting.lights = {{Vec3d(-1.0, 1.0, 1.2), 2.4, true}, {Vec3d(1.0, 0.2, 0.8), 0.8, false}};
+  lighting.ambient = 0.35;
+  lighting.exposure = 1.0;
+  return lighting;
+}
+
+struct MeshRenderer::Gl {
+  MeshBuffers buffers;
+  Texture shadow_map, lights;
+  Eigen::Matrix4f world_to_shadow_clip = Eigen::Matrix4f::Identity();
+  int shadow_light = -1;
+  Pose world_to_view = Pose::Identity();
+  double z_min = 0.0, z_max = 0.0;  // depth range of the mesh in the view, padded
+  double point_spacing = 0.0;       // 0 for triangle meshes
+  int max_tile = 0;                 // the GL's renderbuffer and viewport limit
+  Lighting lighting;
+  LafortuneMaterial material;
+};
+
+MeshRenderer::MeshRenderer(const Mesh& mesh, const LafortuneMaterial& material,
+                           const Pose& world_to_view, const Lighting& lighting)
+    : gl_(std::make_unique<Gl>()) {
+  validate_mesh(mesh, lighting);
+  if (material.lobes.size() > kMaxLafortuneLobes)
+    throw InputError(fmt::format("render: material '{}' has more than {} lobes", material.name,
+                                 kMaxLafortuneLobes));
+  Gl& gl = *gl_;
+  gl.world_to_view = world_to_view;
+  gl.lighting = lighting;
+  gl.material = material;
+  GLint max_size = 0, max_viewport[2] = {0, 0};
+  glGetIntegerv(GL_MAX_RENDERBUFFER_SIZE, &max_size);
+  glGetIntegerv(GL_MAX_VIEWPORT_DIMS, max_viewport);
+  // Tiles are drawn through a viewport twice their size (see u_tiled) and sized in powers of two.
+  const int limit = std::min({max_size, max_viewport[0] / 2, max_viewport[1] / 2});
+  gl.max_tile = 1;
+  while (gl.max_tile * 2 <= limit) gl.max_tile *= 2;
+
+  upload(mesh, gl.buffers);
+  upload_lights(lighting, gl.lights);
+  if (mesh.triangles.empty()) gl.point_spacing = point_spacing_mm(mesh.vertices);
+  gl.z_min = std::numeric_limits<double>::infinity();
+  gl.z_max = -gl.z_min;
+  for (const Vec3f& p : mesh.vertices.points) {
+    const double z = (world_to_view * p.cast<double>()).z();
+    gl.z_min = std::min(gl.z_min, z);
+    gl.z_max = std::max(gl.z_max, z);
   }
-  glUniform1i(program.uniform("u_light_count"), static_cast<GLint>(lighting.lights.size()));
-  glUniform3fv(program.uniform("u_towards_light"), kMaxLights, towards[0].data());
-  glUniform1fv(program.uniform("u_light_intensity"), kMaxLights, intensity.data());
-  glUniform1i(program.uniform("u_shadow_light"), shadow_light);
-  glActiveTexture(GL_TEXTURE0);
-  glBindTexture(GL_TEXTURE_2D, shadow_map.id);
-  glUniform1i(program.uniform("u_shadow_map"), 0);
-  glUniform1f(program.uniform("u_ambient"), static_cast<GLfloat>(lighting.ambient));
-  glUniform1f(program.uniform("u_exposure"), static_cast<GLfloat>(lighting.exposure));
-  glUniform1i(program.uniform("u_srgb_encode"), lighting.srgb_encode);
-  // Clamp infinities: GLSL ES need not represent them in uniforms.
-  const auto finite = [](double v) { return static_cast<GLfloat>(std::clamp(v, -1e30, 1e30)); };
-  glUniform2f(program.uniform("u_keep_x"), finite(camera.keep_x_min_mm),
-              finite(camera.keep_x_max_mm));
+  // Padded so that nothing is clipped by the near/far planes.
+  const double pad = 1.0 + 0.01 * (gl.z_max - gl.z_min);
+  gl.z_min -= pad;
+  gl.z_max += pad;
 
-  glViewport(0, 0, camera.width_px, camera.height_px);
+  for (std::size_t i = 0; i < lighting.lights.size(); ++i)
+    if (lighting.lights[i].casts_shadow) {
+      gl.shadow_light = static_cast<int>(i);
+      gl.world_to_shadow_clip =
+          render_shadow_map(mesh, gl.buffers, world_to_view, lighting.lights[i].towards_light,
+                            gl.point_spacing, gl.shadow_map);
+    }
+  if (gl.shadow_light < 0) {
+    // The sampler must still be complete: a 1×1 map at depth 1 lights everything.
+    glGenTextures(1, &gl.shadow_map.id);
+    glBindTexture(GL_TEXTURE_2D, gl.shadow_map.id);
+    const float far = 1.0f;
+    glTexImage2D(GL_TEXTURE_2D, 0, GL_DEPTH_COMPONENT32F, 1, 1, 0, GL_DEPTH_COMPONENT, GL_FLOAT,
+                 &far);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_COMPARE_MODE, GL_COMPARE_REF_TO_TEXTURE);
+  }
+  check_gl("renderer set-up");
+}
+
+MeshRenderer::~MeshRenderer() = default;
+
+namespace {
+
+bool has_gl_extension(const char* name) {
+  GLint count = 0;
+  glGetIntegerv(GL_NUM_EXTENSIONS, &count);
+  for (GLint i = 0; i < count; ++i)
+    if (std::strcmp(reinterpret_cast<const char*>(glGetStringi(GL_EXTENSIONS, i)), name) == 0)
+      return true;
+  return false;
+}
+
+}  // namespace
+
+RgbaImage MeshRenderer::render(const OrthoCamera& camera, int max_tile_px, bool sixteen_bit) {
+  validate_camera(camera);
+  const Gl& gl = *gl_;
+  if (!camera.world_to_view.isApprox(gl.world_to_view, 1e-12))
+    throw ProcessingError("render: a camera with another view direction than the renderer's");
+  const int tile = max_tile_px > 0 ? std::min(max_tile_px, gl.max_tile) : gl.max_tile;
+  const int tile_w = std::min(tile, camera.width_px), tile_h = std::min(tile, camera.height_px);
+  stats_ = {};
+
+  Renderbuffer colour, depth;
+  Framebuffer fbo;
+  glGenRenderbuffers(1, &colour.id);
+  glBindRenderbuffer(GL_RENDERBUFFER, colour.id);
+  if (sixteen_bit && !has_gl_extension("GL_EXT_color_buffer_float"))
+    throw ProcessingError(
+        "render: 16-bit output needs GL_EXT_color_buffer_float, which this GL lacks; write 8-bit");
+  glRenderbufferStorage(GL_RENDERBUFFER, sixteen_bit ? GL_RGBA16F : GL_RGBA8, tile_w, tile_h);
+  glGenRenderbuffers(1, &depth.id);
+  glBindRenderbuffer(GL_RENDERBUFFER, depth.id);
+  glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT24, tile_w, tile_h);
+  glGenFramebuffers(1, &fbo.id);
+  glBindFramebuffer(GL_FRAMEBUFFER, fbo.id);
+  glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_RENDERBUFFER, colour.id);
+  glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth.id);
+  if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+    throw ProcessingError(
+        fmt::format("render: a {}×{} px framebuffer is incomplete (out of memory?); lower the dpi",
+                    tile_w, tile_h));
+
+  const Program& program = shading_program(gl.point_spacing > 0);
+  glUseProgram(program.id);
+  const Eigen::Matrix4f world_to_view = gl.world_to_view.matrix().cast<float>();
+  glUniformMatrix4fv(program.uniform("u_world_to_view"), 1, GL_FALSE, world_to_view.data());
+  glUniformMatrix4fv(program.uniform("u_world_to_shadow_clip"), 1, GL_FALSE,
+                     gl.world_to_shadow_clip.data());
+  glUniform1f(program.uniform("u_point_size"),
+              gl.point_spacing > 0 ? point_size_px(gl.point_spacing, camera.pixel_mm) : 1.0f);
+  set_material_uniforms(program, gl.material);
+  glUniform1i(program.uniform("u_light_count"), static_cast<GLint>(gl.lighting.lights.size()));
+  glUniform1i(program.uniform("u_shadow_light"), gl.shadow_light);
+  glActiveTexture(GL_TEXTURE0);
+  glBindTexture(GL_TEXTURE_2D, gl.shadow_map.id);
+  glUniform1i(program.uniform("u_shadow_map"), 0);
+  glActiveTexture(GL_TEXTURE1);
+  glBindTexture(GL_TEXTURE_2D, gl.lights.id);
+  glUniform1i(program.uniform("u_lights"), 1);
+  glActiveTexture(GL_TEXTURE0);
+  glUniform1f(program.uniform("u_ambient"), static_cast<GLfloat>(gl.lighting.ambient));
+  glUniform1f(program.uniform("u_exposure"), static_cast<GLfloat>(gl.lighting.exposure));
+  glUniform1i(program.uniform("u_srgb_encode"), gl.lighting.srgb_encode);
+  // Columns whose pixel centres lie within [keep_x_min_mm, keep_x_max_mm].
+  const auto column_of = [&](double x_mm) {
+    return std::clamp((x_mm - camera.left_mm) / camera.pixel_mm - 0.5, -1.0,
+                      static_cast<double>(camera.width_px));
+  };
+  const int keep_from = static_cast<int>(std::ceil(column_of(camera.keep_x_min_mm)));
+  const int keep_to = static_cast<int>(std::floor(column_of(camera.keep_x_max_mm))) + 1;
   glEnable(GL_DEPTH_TEST);
   glDepthFunc(GL_LESS);
   glDisable(GL_CULL_FACE);  // sherds are open shells: both sides of a triangle can be seen
   glClearColor(0.f, 0.f, 0.f, 0.f);
   glClearDepthf(1.f);
-  glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
-  draw(mesh, buffers);
-  check_gl("main pass");
+  glPixelStorei(GL_PACK_ALIGNMENT, 1);
 
   RgbaImage image;
   image.width = camera.width_px;
   image.height = camera.height_px;
-  image.rgba.resize(static_cast<std::size_t>(image.width) * image.height * 4);
-  glPixelStorei(GL_PACK_ALIGNMENT, 1);
-  glReadPixels(0, 0, image.width, image.height, GL_RGBA, GL_UNSIGNED_BYTE, image.rgba.data());
-  check_gl("read-back");
+  const std::size_t samples = static_cast<std::size_t>(image.width) * image.height * 4;
+  (sixteen_bit ? image.rgba16.resize(samples) : image.rgba.resize(samples));
+  std::vector<std::uint8_t> tile_pixels(static_cast<std::size_t>(tile_w) * tile_h * 4);
+  std::vector<float> tile_floats(sixteen_bit ? tile_pixels.size() : 0);
+  // Whole image: view mm → pixels (x right, y up from the bottom edge), clip z.
+  const double p = camera.pixel_mm;
+  Eigen::Matrix4d view_to_pixel = Eigen::Matrix4d::Identity();
+  view_to_pixel(0, 0) = view_to_pixel(1, 1) = 1.0 / p;
+  view_to_pixel(0, 3) = -camera.left_mm / p;
+  view_to_pixel(1, 3) = -camera.bottom_mm / p;
+  view_to_pixel.row(2) = orthographic(0, 1, 0, 1, gl.z_min, gl.z_max).cast<double>().row(2);
+  const Eigen::Matrix4f world_to_pixel = (view_to_pixel * gl.world_to_view.matrix()).cast<float>();
+  glUniformMatrix4fv(program.uniform("u_world_to_clip"), 1, GL_FALSE, world_to_pixel.data());
+  glUniform1i(program.uniform("u_tiled"), 1);
+  int viewport = 1;
+  while (viewport < 2 * std::max(tile_w, tile_h)) viewport *= 2;
+  glUniform1f(program.uniform("u_px_to_ndc"), 2.0f / static_cast<float>(viewport));
+  glViewport(-viewport / 2, -viewport / 2, viewport, viewport);
+  // Tile (x0, y0) covers image columns [x0, x0 + w) and GL rows [y0, y0 + h) (counted from the
+  // bottom).
+  for (int y0 = 0; y0 < image.height; y0 += tile_h)
+    for (int x0 = 0; x0 < image.width; x0 += tile_w) {
+      const int w = std::min(tile_w, image.width - x0), h = std::min(tile_h, image.height - y0);
+      const auto start = std::chrono::steady_clock::now();
+      glUniform2f(program.uniform("u_tile_origin_px"), static_cast<GLfloat>(x0),
+                  static_cast<GLfloat>(y0));
+      glDisable(GL_SCISSOR_TEST);  // clear the whole tile
+      glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+      const int scissor_from = std::clamp(keep_from - x0, 0, w);
+      const int scissor_to = std::clamp(keep_to - x0, 0, w);
+      glEnable(GL_SCISSOR_TEST);
+      glScissor(scissor_from, 0, std::max(0, scissor_to - scissor_from), h);
+      draw(gl.buffers);
+      glDisable(GL_SCISSOR_TEST);
+      glFinish();
+      check_gl("main pass");
+      const auto drawn = std::chrono::steady_clock::now();
+      stats_.draw_s += seconds_since(start);
+      if (sixteen_bit)
+        glReadPixels(0, 0, w, h, GL_RGBA, GL_FLOAT, tile_floats.data());
+      else
+        glReadPixels(0, 0, w, h, GL_RGBA, GL_UNSIGNED_BYTE, tile_pixels.data());
+      check_gl("read-back");
+      // GL rows run bottom-up; images here run top-down.
+      for (int r = 0; r < h; ++r) {
+        const std::size_t to =
+            (static_cast<std::size_t>(image.height - 1 - (y0 + r)) * image.width + x0) * 4;
+        const std::size_t from = static_cast<std::size_t>(r) * w * 4;
+        if (sixteen_bit)
+          std::transform(
+              tile_floats.begin() + from, tile_floats.begin() + from + w * 4,
+              image.rgba16.begin() + to, [](float v) {
+                return static_cast<std::uint16_t>(std::lround(std::clamp(v, 0.f, 1.f) * 65535.f));
+              });
+        else
+          std::memcpy(image.rgba.data() + to, tile_pixels.data() + from,
+                      static_cast<std::size_t>(w) * 4);
+      }
+      stats_.readback_s += seconds_since(drawn);
+      ++stats_.tiles;
+    }
   glBindFramebuffer(GL_FRAMEBUFFER, 0);
-  // GL rows run bottom-up; images here run top-down.
-  const std::size_t row = static_cast<std::size_t>(image.width) * 4;
-  for (int j = 0; j < image.height / 2; ++j)
-    std::swap_ranges(image.rgba.begin() + j * row, image.rgba.begin() + (j + 1) * row,
-                     image.rgba.end() - (j + 1) * row);
   return image;
+}
+
+RgbaImage render_mesh(const Mesh& mesh, const LafortuneMaterial& material,
+                      const OrthoCamera& camera, const Lighting& lighting) {
+  validate_camera(camera);
+  return MeshRenderer(mesh, material, camera.world_to_view, lighting).render(camera);
 }
 
 }  // namespace sherd::render

@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <memory>
 #include <numbers>
 #include <vector>
@@ -99,7 +100,7 @@ double text_width_mm(const std::vector<std::string>& lines) {
   Cairo cr(cairo_create(scratch.get()), cairo_destroy);
   cairo_select_font_face(cr.get(), "sans-serif", CAIRO_FONT_SLANT_NORMAL, CAIRO_FONT_WEIGHT_NORMAL);
   cairo_set_font_size(cr.get(), kFontMm);
-  double width = kScaleBarMm + 15.0;
+  double width = kScaleBarMm + 35.0;  // room for the rim-percent diagram
   for (const std::string& line : lines) {
     cairo_text_extents_t extents;
     cairo_text_extents(cr.get(), line.c_str(), &extents);
@@ -121,30 +122,7 @@ Cairo drawing_context(cairo_surface_t* surface, const Canvas& canvas) {
   cairo_matrix_init(&matrix, 1.0 / canvas.pixel_mm, 0.0, 0.0, -1.0 / canvas.pixel_mm,
                     -canvas.u0 / canvas.pixel_mm, canvas.v_top / canvas.pixel_mm);
   cairo_set_matrix(cr.get(), &matrix);
-  cairo_set_source_rgb(cr.get(), 1, 1, 1);
-  cairo_paint(cr.get());
   return cr;
-}
-
-// Composites a rendered view (on the canvas's pixel grid) over the plate at pixel (column, row).
-void paste(cairo_t* cr, RgbaImage& view, int column, int row) {
-  // Reorder in place into cairo's premultiplied native-endian ARGB32 (4 bytes per pixel, so the
-  // stride is width × 4 as cairo wants).
-  for (std::size_t i = 0; i < view.rgba.size(); i += 4) {
-    const std::uint32_t a = view.rgba[i + 3];
-    const auto pre = [a](std::uint32_t c) { return (c * a + 127) / 255; };
-    const std::uint32_t argb = (a << 24) | (pre(view.rgba[i]) << 16) |
-                               (pre(view.rgba[i + 1]) << 8) | pre(view.rgba[i + 2]);
-    std::memcpy(&view.rgba[i], &argb, 4);
-  }
-  Surface image(cairo_image_surface_create_for_data(view.rgba.data(), CAIRO_FORMAT_ARGB32,
-                                                    view.width, view.height, view.width * 4),
-                cairo_surface_destroy);
-  cairo_save(cr);
-  cairo_identity_matrix(cr);
-  cairo_set_source_surface(cr, image.get(), column, row);
-  cairo_paint(cr);
-  cairo_restore(cr);
 }
 
 void polyline(cairo_t* cr, const profile::Polyline2& line) {
@@ -207,32 +185,106 @@ void draw_footer(cairo_t* cr, const Canvas& canvas, double u, double v,
          lines[i]);
 }
 
-void write_png(const std::filesystem::path& file, cairo_surface_t* surface, int dpi) {
-  cairo_surface_flush(surface);
-  const int width = cairo_image_surface_get_width(surface);
-  const int height = cairo_image_surface_get_height(surface);
-  const int stride = cairo_image_surface_get_stride(surface);
-  const unsigned char* data = cairo_image_surface_get_data(surface);
-  std::vector<std::uint8_t> rgb(static_cast<std::size_t>(width) * height * 3);
-  for (int y = 0; y < height; ++y)
-    for (int x = 0; x < width; ++x) {
-      std::uint32_t argb;  // opaque (white background): no un-premultiplying needed
-      std::memcpy(&argb, data + static_cast<std::size_t>(y) * stride + x * 4, 4);
-      std::uint8_t* out = &rgb[(static_cast<std::size_t>(y) * width + x) * 3];
-      out[0] = static_cast<std::uint8_t>(argb >> 16);
-      out[1] = static_cast<std::uint8_t>(argb >> 8);
-      out[2] = static_cast<std::uint8_t>(argb);
-    }
-  write_png_rgb8(file, width, height, rgb, dpi);
+// The preserved share of the rim as an arc on a thin circle (clockwise from the top) with its
+// percentage, right of the scale bar's end, from the footer's top-left corner (u, v).
+void draw_rim_diagram(cairo_t* cr, const Canvas& canvas, double u, double v, double percent) {
+  const double radius = 3.0, cu = u + kScaleBarMm + 12.0, cv = v - 6.0;
+  cairo_set_source_rgb(cr, 0, 0, 0);
+  cairo_new_path(cr);
+  cairo_set_line_width(cr, 0.2);
+  cairo_arc(cr, cu, cv, radius, 0.0, 2 * std::numbers::pi);
+  cairo_stroke(cr);
+  cairo_set_line_width(cr, 0.9);
+  // User space has v up, so clockwise on paper is decreasing angle.
+  const double top = std::numbers::pi / 2;
+  cairo_arc_negative(cr, cu, cv, radius, top,
+                     top - 2 * std::numbers::pi * std::clamp(percent, 0.0, 100.0) / 100.0);
+  cairo_stroke(cr);
+  text(cr, canvas, cu + radius + 1.5, cv - 1.0, fmt::format("rim {:.0f} %", percent));
 }
 
-Surface plate_surface(const Canvas& canvas) {
-  Surface surface(cairo_image_surface_create(CAIRO_FORMAT_ARGB32, canvas.width, canvas.height),
-                  cairo_surface_destroy);
-  if (cairo_surface_status(surface.get()) != CAIRO_STATUS_SUCCESS)
-    throw ProcessingError(fmt::format("render: cannot allocate a {}×{} px plate; lower the dpi",
-                                      canvas.width, canvas.height));
-  return surface;
+// A rendered view and where it goes on the plate.
+struct PlacedView {
+  MeshRenderer* renderer = nullptr;
+  PlacedCamera placed;
+};
+
+// Draws the plate's ink (all of it black: lines, section, text) into an A8 mask in drawing mm.
+using InkPainter = std::function<void(cairo_t*, const Canvas&)>;
+
+// Composes the plate band by band: the views' pixels over white, then the ink over them, each
+// band written to the PNG before the next is drawn, so that memory is bounded by the band, not
+// the plate. Composition is in 16 bits per channel for both output formats.
+PlateFiles compose_plate(const Canvas& canvas, const std::vector<PlacedView>& views,
+                         const InkPainter& paint_ink, const PlateSettings& settings,
+                         const std::filesystem::path& dir) {
+  PlateFiles files{dir / "plate.png", dir / "profile.svg", canvas.width, canvas.height};
+  const bool grey16 = settings.grey16;
+  PngStream png(files.png, canvas.width, canvas.height, settings.dpi,
+                grey16 ? PngFormat::kGrey16 : PngFormat::kRgb8);
+  const auto width = static_cast<std::size_t>(canvas.width);
+  const int band_rows =
+      settings.band_rows > 0
+          ? settings.band_rows
+          : std::max(1, static_cast<int>((std::size_t{128} << 20) / (width * 16)));
+  std::vector<std::uint16_t> rgb(width * 3 * band_rows);
+  std::vector<std::uint8_t> row8(width * 3);
+  std::vector<std::uint16_t> row16(width);
+  for (int r0 = 0; r0 < canvas.height; r0 += band_rows) {
+    const int rows = std::min(band_rows, canvas.height - r0);
+    std::fill(rgb.begin(), rgb.end(), std::uint16_t{65535});
+    for (const PlacedView& view : views) {
+      const OrthoCamera& full = view.placed.camera;
+      const int from = std::max(r0, view.placed.row);
+      const int to = std::min(r0 + rows, view.placed.row + full.height_px);
+      if (from >= to) continue;
+      OrthoCamera part = full;  // the view's plate rows [from, to): whole pixels off its bottom
+      part.bottom_mm = full.bottom_mm + (view.placed.row + full.height_px - to) * full.pixel_mm;
+      part.height_px = to - from;
+      const RgbaImage image = view.renderer->render(part, 0, grey16);
+      const auto sample = [&](std::size_t k) -> std::uint32_t {
+        return grey16 ? image.rgba16[k] : image.rgba[k] * 257u;
+      };
+      for (int j = 0; j < part.height_px; ++j)
+        for (int i = 0; i < part.width_px; ++i) {
+          const std::size_t src = (static_cast<std::size_t>(j) * part.width_px + i) * 4;
+          const std::uint32_t a = sample(src + 3);
+          if (a == 0) continue;
+          std::uint16_t* out = &rgb[((from - r0 + j) * width + view.placed.column + i) * 3];
+          for (int c = 0; c < 3; ++c)
+            out[c] = static_cast<std::uint16_t>(
+                (sample(src + c) * a + out[c] * (65535u - a) + 32767u) / 65535u);
+        }
+    }
+    Canvas band = canvas;
+    band.v_top = canvas.v_top - r0 * canvas.pixel_mm;
+    band.height = rows;
+    Surface ink(cairo_image_surface_create(CAIRO_FORMAT_A8, canvas.width, rows),
+                cairo_surface_destroy);
+    if (cairo_surface_status(ink.get()) != CAIRO_STATUS_SUCCESS)
+      throw ProcessingError(fmt::format("render: cannot allocate a {}×{} px band; lower the dpi",
+                                        canvas.width, rows));
+    paint_ink(drawing_context(ink.get(), band).get(), band);
+    cairo_surface_flush(ink.get());
+    const unsigned char* mask = cairo_image_surface_get_data(ink.get());
+    const int stride = cairo_image_surface_get_stride(ink.get());
+    for (int j = 0; j < rows; ++j) {
+      for (std::size_t i = 0; i < width; ++i) {
+        const std::uint32_t keep = 255u - mask[static_cast<std::size_t>(j) * stride + i];
+        std::uint16_t* px = &rgb[(j * width + i) * 3];
+        for (int c = 0; c < 3; ++c) px[c] = static_cast<std::uint16_t>((px[c] * keep + 127) / 255);
+        if (grey16)  // Rec. 709 luma of the display-encoded colour
+          row16[i] = static_cast<std::uint16_t>(
+              std::lround(0.2126 * px[0] + 0.7152 * px[1] + 0.0722 * px[2]));
+        else
+          for (int c = 0; c < 3; ++c)
+            row8[i * 3 + c] = static_cast<std::uint8_t>((px[c] + 128) / 257);
+      }
+      png.write_row(grey16 ? static_cast<const void*>(row16.data()) : row8.data());
+    }
+  }
+  png.finish();
+  return files;
 }
 
 // Azimuth (sherd frame, radians) where the sherd's arc starts, going counter-clockwise, and its
@@ -277,13 +329,6 @@ std::vector<std::string> measurement_lines(const PlateInput& input, const PlateS
           scale_line(settings)};
 }
 
-PlateFiles finish(cairo_surface_t* surface, const Canvas& canvas, const PlateSettings& settings,
-                  const std::filesystem::path& dir) {
-  PlateFiles files{dir / "plate.png", dir / "profile.svg", canvas.width, canvas.height};
-  write_png(files.png, surface, settings.dpi);
-  return files;
-}
-
 // The sherd turned about its axis so that its arc starts at the meridian facing the viewer and
 // extends to the exterior side, seen horizontally; the section on the other side.
 PlateFiles axial_plate(const PlateInput& input, const PlateSettings& settings,
@@ -317,15 +362,18 @@ PlateFiles axial_plate(const PlateInput& input, const PlateSettings& settings,
 
   PlacedCamera placed = camera_on(canvas, world_to_drawing, view);
   (exterior_side < 0 ? placed.camera.keep_x_max_mm : placed.camera.keep_x_min_mm) = 0.0;
-  RgbaImage exterior = render_mesh(*input.mesh, material, placed.camera, drawing_lighting());
+  MeshRenderer exterior(*input.mesh, material, world_to_drawing, drawing_lighting());
 
-  Surface surface = plate_surface(canvas);
-  Cairo cr = drawing_context(surface.get(), canvas);
-  paste(cr.get(), exterior, placed.column, placed.row);
-  draw_profile(cr.get(), drawing);
-  draw_footer(cr.get(), canvas, content.u_min, footer_v, lines);
   write_profile_svg(dir / "profile.svg", drawing, kMarginMm);
-  return finish(surface.get(), canvas, settings, dir);
+  return compose_plate(
+      canvas, {{&exterior, placed}},
+      [&](cairo_t* cr, const Canvas& band) {
+        draw_profile(cr, drawing);
+        draw_footer(cr, band, content.u_min, footer_v, lines);
+        if (settings.rim_percent_diagram && analysis.measurements.rim_percent)
+          draw_rim_diagram(cr, band, content.u_min, footer_v, *analysis.measurements.rim_percent);
+      },
+      settings, dir);
 }
 
 // No axis: the sherd seen square-on to its mean plane, front (the side its normals face) and
@@ -379,19 +427,19 @@ PlateFiles body_plate(const PlateInput& input, const PlateSettings& settings,
   content.v_min -= 5.0;
   const Canvas canvas = make_canvas(content, 25.4 / settings.dpi);
 
-  Surface surface = plate_surface(canvas);
-  Cairo cr = drawing_context(surface.get(), canvas);
-  for (const auto& [pose, bounds] :
-       {std::pair{front_pose, front_bounds}, {back_pose, back_bounds}}) {
-    const PlacedCamera placed = camera_on(canvas, pose, bounds);
-    RgbaImage view = render_mesh(*input.mesh, material, placed.camera, drawing_lighting());
-    paste(cr.get(), view, placed.column, placed.row);
-  }
-  text(cr.get(), canvas, front_bounds.u_min, caption_v, "front");
-  text(cr.get(), canvas, back_bounds.u_min, caption_v, "back");
-  draw_footer(cr.get(), canvas, content.u_min, footer_v, lines);
+  MeshRenderer front_view(*input.mesh, material, front_pose, drawing_lighting());
+  MeshRenderer back_view(*input.mesh, material, back_pose, drawing_lighting());
   write_no_section_svg(dir / "profile.svg", reason);
-  return finish(surface.get(), canvas, settings, dir);
+  return compose_plate(
+      canvas,
+      {{&front_view, camera_on(canvas, front_pose, front_bounds)},
+       {&back_view, camera_on(canvas, back_pose, back_bounds)}},
+      [&](cairo_t* cr, const Canvas& band) {
+        text(cr, band, front_bounds.u_min, caption_v, "front");
+        text(cr, band, back_bounds.u_min, caption_v, "back");
+        draw_footer(cr, band, content.u_min, footer_v, lines);
+      },
+      settings, dir);
 }
 
 }  // namespace

@@ -1,6 +1,7 @@
 // The publication plate of one sherd: the exterior rendered headlessly (EGL, Lafortune BRDF) at
 // real scale next to the black profile section, axis line, scale bar and key measurements.
-// Writes plate.png (pHYs = dpi) and profile.svg (1 user unit = 1 mm).
+// Writes plate.png (pHYs = dpi; 8-bit RGB or 16-bit grey) and profile.svg (1 user unit = 1 mm).
+// The plate is composed and written in bands of rows, so memory stays bounded at any dpi.
 #pragma once
 
 #include "core/types.h"
@@ -16,12 +17,15 @@ struct PlateSettings {
   std::string material = "clay";
   std::filesystem::path materials_file;  // config/materials.xml
   bool section_on_right = true;          // German/Austrian convention; false = British
+  bool grey16 = false;  // plate.png as 16-bit grey (the view read back from GL in float)
+  int band_rows = 0;    // rows composed at a time (0: about 128 MiB worth); bounds memory
+  bool rim_percent_diagram = true;  // the preserved rim share as an arc, where it is known
 };
 
 struct PlateInput {
   std::string scan_id;
   std::string sherd_id;
-  const Mesh* mesh = nullptr;          // the sherd in the world frame
+  const Mesh* mesh = nullptr;                   // the sherd in the world frame
   const profile::Analysis* analysis = nullptr;  // nullptr or !axis.found: body sherd without axis
 };
 

@@ -11,7 +11,9 @@
 namespace sherd::render {
 namespace {
 
-constexpr double kAxisOverhangMm = 4.0;  // the axis line reaches a little past the drawing
+constexpr double kAxisOverhangMm = 4.0;   // the axis line reaches a little past the drawing
+constexpr double kScaleBarMm = 50.0;      // the SVG's scale bar, below the drawing
+constexpr double kScaleBarSpaceMm = 6.0;  // room for it
 
 void check_polyline(const profile::Polyline2& line, const char* which) {
   if (line.size() < 2)
@@ -99,8 +101,8 @@ ProfileDrawing make_profile_drawing(const profile::Analysis& analysis, bool sect
 void write_profile_svg(const std::filesystem::path& file, const ProfileDrawing& drawing,
                        double margin_mm) {
   const DrawingBounds& b = drawing.bounds;
-  const double width = b.u_max - b.u_min + 2 * margin_mm;
-  const double height = b.v_max - b.v_min + 2 * margin_mm;
+  const double width = std::max(b.u_max - b.u_min, kScaleBarMm) + 2 * margin_mm;
+  const double height = b.v_max - b.v_min + kScaleBarSpaceMm + 2 * margin_mm;
   std::string svg = fmt::format(
       "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
       "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{0:.4f}mm\" height=\"{1:.4f}mm\" "
@@ -126,7 +128,13 @@ void write_profile_svg(const std::filesystem::path& file, const ProfileDrawing& 
       "  <polygon id=\"section\" points=\"{}\" fill=\"black\" stroke=\"black\" "
       "stroke-width=\"0.35\" stroke-linejoin=\"round\"/>\n",
       svg_points(drawing.section));
-  svg += "</svg>\n";
+  // Scale bar below the drawing: 1 cm cells, alternately filled.
+  svg += "  <g id=\"scale-bar\" stroke=\"black\" stroke-width=\"0.2\">\n";
+  for (int cm = 0; cm < static_cast<int>(kScaleBarMm / 10.0); ++cm)
+    svg += fmt::format(
+        "    <rect x=\"{:.4f}\" y=\"{:.4f}\" width=\"10\" height=\"1.5\" fill=\"{}\"/>\n",
+        b.u_min + 10.0 * cm, -b.v_min + kScaleBarSpaceMm - 1.5, cm % 2 == 0 ? "black" : "white");
+  svg += "  </g>\n</svg>\n";
   write_text(file, svg);
 }
 

@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <numbers>
 
@@ -213,6 +214,83 @@ TEST(MeshView, PointCloudIsDrawnWithoutHoles) {
   const Coverage c = row_coverage(image, 60);
   EXPECT_EQ(c.last - c.first + 1, c.count) << "holes between the points";
   EXPECT_NEAR(c.count * camera.pixel_mm, 100.0, 1.0);
+}
+
+TEST(MeshView, NegativeLobeBaseIsClampedToZero) {
+  // Hand value. One lobe with Cxy = Cz = −1 seen and lit head-on: base = −1·(wo·wi) < 0, which
+  // pbrt clamps to 0 (with exponent 2 an unclamped power would give +1). Only the diffuse term
+  // 0.4/π remains: under E = 1.5 along the normal, 0.4/π · 1.5 = 0.190986.
+  const LafortuneMaterial material{
+      "clamped", {0.4, 0.4, 0.4}, {{{-1.0, -1.0, -1.0}, {-1.0, -1.0, -1.0}, {2.0, 2.0, 2.0}}}};
+  Lighting lighting;
+  lighting.lights = {{Vec3d::UnitZ(), 1.5, false}};
+  lighting.srgb_encode = false;
+  OrthoCamera camera;
+  camera.pixel_mm = 0.5;
+  camera.left_mm = camera.bottom_mm = -8.0;
+  camera.width_px = camera.height_px = 32;
+  const RgbaImage image = render_mesh(test::box(20.0, 20.0, 1.0), material, camera, lighting);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(image.pixel(16, 16)[c] / 255.0, 0.190986, 1.0 / 255.0);
+}
+
+TEST(MeshView, AnyNumberOfLightsAddUp) {
+  // Hand value. Nine lights (more than any fixed small array), each 0.2 irradiance from 40° off
+  // the normal at azimuths 40° apart, on a Lambertian 0.5 albedo:
+  // 9 · 0.5/π · cos 40° · 0.2 = 0.219453. Two more lights from behind add nothing.
+  const LafortuneMaterial lambert{"lambert", {0.5, 0.5, 0.5}, {}};
+  const double polar = 40.0 * std::numbers::pi / 180.0;
+  Lighting lighting;
+  for (int i = 0; i < 9; ++i) {
+    const double azimuth = i * 40.0 * std::numbers::pi / 180.0;
+    lighting.lights.push_back({Vec3d(std::sin(polar) * std::cos(azimuth),
+                                     std::sin(polar) * std::sin(azimuth), std::cos(polar)),
+                               0.2, false});
+  }
+  lighting.lights.push_back({Vec3d(0.3, 0.0, -1.0), 5.0, false});
+  lighting.lights.push_back({Vec3d(0.0, -0.2, -1.0), 5.0, false});
+  lighting.srgb_encode = false;
+  OrthoCamera camera;
+  camera.pixel_mm = 0.5;
+  camera.left_mm = camera.bottom_mm = -8.0;
+  camera.width_px = camera.height_px = 32;
+  const RgbaImage image = render_mesh(test::box(20.0, 20.0, 1.0), lambert, camera, lighting);
+  EXPECT_NEAR(image.pixel(16, 16)[0] / 255.0, 0.219453, 1.0 / 255.0);
+}
+
+TEST(MeshView, TiledRenderEqualsSinglePass) {
+  // A relief dome with shadows, 331 × 297 px (odd sizes: partial tiles at the right and top),
+  // drawn in one pass and in 64 px tiles.
+  const Mesh dome = test::relief_dome(30.0, 120, 240);
+  const LafortuneMaterial clay = find_material(kMaterials, "clay");
+  OrthoCamera camera;
+  camera.pixel_mm = 0.2;
+  camera.left_mm = -33.1;
+  camera.bottom_mm = -29.7;
+  camera.width_px = 331;
+  camera.height_px = 297;
+  MeshRenderer renderer(dome, clay, camera.world_to_view, drawing_lighting());
+  const RgbaImage single = renderer.render(camera);
+  ASSERT_EQ(renderer.last_stats().tiles, 1);
+  const RgbaImage tiled = renderer.render(camera, 64);
+  ASSERT_EQ(renderer.last_stats().tiles, 6 * 5);
+  ASSERT_EQ(tiled.rgba.size(), single.rgba.size());
+  // Coverage must be identical (same sample positions); the shading may differ by one 8-bit
+  // level in a few pixels, where llvmpipe's varying interpolation rounds differently for another
+  // tile origin.
+  int covered = 0, coverage_differs = 0, colour_differs = 0, largest_difference = 0;
+  for (std::size_t i = 0; i < single.rgba.size(); i += 4) {
+    covered += single.rgba[i + 3] > 0;
+    coverage_differs += single.rgba[i + 3] != tiled.rgba[i + 3];
+    int difference = 0;
+    for (int c = 0; c < 3; ++c)
+      difference = std::max(difference, std::abs(single.rgba[i + c] - tiled.rgba[i + c]));
+    colour_differs += difference > 0;
+    largest_difference = std::max(largest_difference, difference);
+  }
+  EXPECT_GT(covered, 20000) << "the dome is in the picture";
+  EXPECT_EQ(coverage_differs, 0);
+  EXPECT_LE(largest_difference, 1);
+  EXPECT_LE(colour_differs, covered / 1000) << "pixels whose colour differs by one level";
 }
 
 TEST(MeshView, RejectsNonFiniteVertices) {

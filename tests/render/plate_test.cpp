@@ -135,6 +135,7 @@ struct Svg {
   double width_mm = 0, height_mm = 0;
   std::array<double, 4> view_box{};
   std::vector<std::array<double, 2>> section;
+  std::vector<std::array<double, 2>> scale_cells;  // x, width of each <rect> of the scale bar
 };
 
 double mm_attribute(const std::string& value) {
@@ -166,6 +167,11 @@ Svg read_svg(const std::filesystem::path& file) {
       double x, y;
       char comma;
       while (points >> x >> comma >> y) svg.section.push_back({x, y});
+    } else if (node->type == XML_ELEMENT_NODE && attribute(node, "id") == "scale-bar") {
+      for (xmlNode* cell = node->children; cell; cell = cell->next)
+        if (cell->type == XML_ELEMENT_NODE)
+          svg.scale_cells.push_back(
+              {std::stod(attribute(cell, "x")), std::stod(attribute(cell, "width"))});
     }
   xmlFreeDoc(doc);
   return svg;
@@ -192,6 +198,12 @@ void expect_section_extent(const Svg& svg, double x_min, double x_max) {
   EXPECT_LE(svg.view_box[1], -40.0);
   EXPECT_GE(svg.view_box[1] + svg.view_box[3], 0.0);
   EXPECT_LT(svg.width_mm, 100.0 + 40.0) << "no more than a margin around the drawing";
+  // A 5 cm scale bar of 1 cm cells, end to end: 50 user units = 50 mm.
+  ASSERT_EQ(svg.scale_cells.size(), 5u);
+  for (std::size_t i = 0; i < 5; ++i) {
+    EXPECT_DOUBLE_EQ(svg.scale_cells[i][1], 10.0);
+    EXPECT_NEAR(svg.scale_cells[i][0], svg.scale_cells[0][0] + 10.0 * i, 1e-3);
+  }
 }
 
 TEST(Plate, SectionOnTheRightInSvg) {
@@ -246,6 +258,77 @@ TEST(Plate, ExteriorViewStartsAtTheFacingMeridian) {
   EXPECT_TRUE(png.white(column(-46.5), row)) << "between the arc's end and the outline";
   EXPECT_TRUE(png.white(column(20.0), row)) << "between the axis and the section";
   EXPECT_FALSE(png.white(column(-50.0), row)) << "the vessel outline";
+}
+
+TEST(Plate, CompositionInBandsEqualsOneBand) {
+  // The same plate composed 71 rows at a time (views rendered per band, ink drawn per band)
+  // and in one band.
+  const WallSherd sherd = wall_sherd(120.0);
+  PlateSettings settings = settings_at(200);
+  settings.band_rows = 71;
+  const Png banded = read_png(render_plate({"scan-1", "sherd-7", &sherd.mesh, &sherd.analysis},
+                                           settings, fresh_dir("banded"))
+                                  .png);
+  settings.band_rows = 1 << 20;
+  const Png whole = read_png(render_plate({"scan-1", "sherd-7", &sherd.mesh, &sherd.analysis},
+                                          settings, fresh_dir("whole"))
+                                 .png);
+  ASSERT_EQ(banded.width, whole.width);
+  ASSERT_EQ(banded.height, whole.height);
+  ASSERT_GT(banded.height, 4 * 71);
+  int different = 0, largest = 0;
+  for (std::size_t i = 0; i < whole.rgb.size(); ++i) {
+    const int d = std::abs(whole.rgb[i] - banded.rgb[i]);
+    different += d > 0;
+    largest = std::max(largest, d);
+  }
+  EXPECT_EQ(different, 0) << "largest difference " << largest;
+}
+
+TEST(Plate, Grey16At1200DpiHasPhysAndExactScale) {
+  // The body-sherd plate of a 100.000 mm slab as 16-bit grey at 1200 dpi: the PNG says 16-bit
+  // grey and 1200 dpi (47244 px/m), and the slab spans 4724 ± 1 px.
+  const Mesh slab = test::box(100.0, 30.0, 5.0);
+  PlateSettings settings = settings_at(1200);
+  settings.grey16 = true;
+  const PlateFiles files =
+      render_plate({"scan-1", "sherd-8", &slab, nullptr}, settings, fresh_dir("grey16"));
+  std::FILE* in = std::fopen(files.png.c_str(), "rb");
+  ASSERT_NE(in, nullptr);
+  png_structp reader = png_create_read_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
+  png_infop info = png_create_info_struct(reader);
+  png_init_io(reader, in);
+  png_read_info(reader, info);
+  png_set_swap(reader);  // to native (little-endian) order
+  EXPECT_EQ(png_get_color_type(reader, info), PNG_COLOR_TYPE_GRAY);
+  EXPECT_EQ(png_get_bit_depth(reader, info), 16);
+  png_uint_32 x_ppu = 0, y_ppu = 0;
+  int unit = -1;
+  png_get_pHYs(reader, info, &x_ppu, &y_ppu, &unit);
+  EXPECT_EQ(unit, PNG_RESOLUTION_METER);
+  EXPECT_EQ(x_ppu, 47244u);  // 1200 / 0.0254 = 47244.09
+  EXPECT_EQ(y_ppu, 47244u);
+  const int width = static_cast<int>(png_get_image_width(reader, info));
+  const int height = static_cast<int>(png_get_image_height(reader, info));
+  std::vector<std::uint16_t> row(width);
+  int widest = 0, distinct_levels = 0;
+  std::vector<bool> seen(65536, false);
+  for (int j = 0; j < height; ++j) {
+    png_read_row(reader, reinterpret_cast<png_bytep>(row.data()), nullptr);
+    int run = 0;
+    for (int i = 0; i < width; ++i) {
+      run = row[i] >= 65280 ? 0 : run + 1;  // 65280 = 255 · 256: whiter than any 8-bit grey
+      widest = std::max(widest, run);
+      if (!seen[row[i]]) {
+        seen[row[i]] = true;
+        ++distinct_levels;
+      }
+    }
+  }
+  png_destroy_read_struct(&reader, &info, nullptr);
+  std::fclose(in);
+  EXPECT_NEAR(widest, 4724, 1);
+  EXPECT_GT(distinct_levels, 256) << "more grey levels than 8 bits hold";
 }
 
 TEST(Plate, UnknownMaterialIsAnInputErrorBeforeRendering) {

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <functional>
+#include <numbers>
 
 namespace sherd::render::test {
 namespace {
@@ -68,6 +69,26 @@ Mesh cylinder_wall(double outer_r, double inner_r, double height, double from_ra
       const double r = inner_r + t * (outer_r - inner_r);
       return PointNormal{(r * radial(s) + Vec3d(0, 0, z)).cast<float>(), Vec3f(0, 0, up)};
     });
+  return mesh;
+}
+
+Mesh relief_dome(double radius, int rings, int segments) {
+  Mesh mesh;
+  const double max_polar = std::numbers::pi / 3;
+  // Radius modulated along the polar angle θ: r(θ) = R (1 + a sin(k θ)), six grooves.
+  const double a = 0.03, k = 36.0;
+  add_grid(mesh, rings, segments, [&](double s, double t) {
+    const double theta = t * max_polar, phi = s * 2 * std::numbers::pi;
+    const double r = radius * (1 + a * std::sin(k * theta));
+    const double dr = radius * a * k * std::cos(k * theta);
+    const Vec3d radial(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi),
+                       std::cos(theta));
+    const Vec3d along(std::cos(theta) * std::cos(phi), std::cos(theta) * std::sin(phi),
+                      -std::sin(theta));
+    // The surface normal of a radius r(θ): r·radial − r'·along, normalised.
+    const Vec3d n = (r * radial - dr * along).normalized();
+    return PointNormal{(r * radial).cast<float>(), n.cast<float>()};
+  });
   return mesh;
 }
 

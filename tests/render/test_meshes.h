@@ -13,4 +13,8 @@ Mesh box(double size_x, double size_y, double size_z);
 // faces with radial / vertical normals.
 Mesh cylinder_wall(double outer_r, double inner_r, double height, double from_rad, double to_rad);
 
+// A dome (spherical cap of radius `radius`, 60° half-angle) carrying concentric grooves and
+// bosses: curvature, relief and self-shadowing in one small mesh, with analytic normals.
+Mesh relief_dome(double radius, int rings, int segments);
+
 }  // namespace sherd::render::test
