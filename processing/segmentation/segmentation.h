@@ -2,11 +2,11 @@
 // then Euclidean clustering and size filters.
 #pragma once
 
-#include "core/types.h"
-
 #include <cstdint>
 #include <string>
 #include <vector>
+
+#include "core/types.h"
 
 namespace sherd::segmentation {
 
@@ -38,9 +38,9 @@ struct Params {
 };
 
 struct Part {
-  std::string id;                       // "s01", "s02", … ordered by centroid (x, then y)
-  std::vector<std::uint32_t> indices;   // into the input mesh's vertices
-  Mesh mesh;                            // the sub-mesh
+  std::string id;                      // "s01", "s02", … ordered by centroid (x, then y)
+  std::vector<std::uint32_t> indices;  // into the input mesh's vertices
+  Mesh mesh;                           // the sub-mesh
   Box3 bbox;
 };
 
