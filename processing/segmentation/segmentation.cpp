@@ -31,9 +31,6 @@ constexpr double kVoxelsPerTolerance = 3.0;
 // The clustering distance is at least this many point spacings (a gap of one missing row of
 // points must not split a sherd).
 constexpr double kSpacingsPerTolerance = 4.0;
-// Erosion depth for splitting touching sherds, in clustering distances: contacts shorter than
-// about twice this are cut; a sherd must be wider than that everywhere to stay whole.
-constexpr double kErosionPerTolerance = 1.6;
 
 void check_params(const Params& p) {
   auto bad = [](const std::string& what) {
@@ -47,6 +44,8 @@ void check_params(const Params& p) {
     bad(fmt::format("min_extent_mm = {} must not exceed max_extent_mm = {}", p.min_extent_mm,
                     p.max_extent_mm));
   }
+  if (!(p.contact_erosion_mm >= 0.0))
+    bad(fmt::format("contact_erosion_mm = {} must be >= 0", p.contact_erosion_mm));
   if (!(p.plane_distance_mm > 0.0))
     bad(fmt::format("plane_distance_mm = {} must be > 0", p.plane_distance_mm));
 }
@@ -230,6 +229,27 @@ void geodesic_from(const Graph& near, const std::vector<Vec3f>& centres,
   }
 }
 
+// Watershed on the distance from the boundary: the cores grow in order of decreasing `depth`,
+// so two of them meet where the surface is narrowest between them — at the contact of two
+// sherds, not halfway between their cores.
+void flood_from_cores(const Graph& near, const std::vector<std::uint32_t>& cluster,
+                      const std::vector<std::pair<std::uint32_t, int>>& cores,
+                      const std::vector<float>& depth, std::vector<int>& tag) {
+  using Item = std::pair<float, std::uint32_t>;
+  std::priority_queue<Item> queue;  // deepest first
+  for (auto v : cluster) tag[v] = -1;
+  for (auto [v, t] : cores) tag[v] = t, queue.emplace(depth[v], v);
+  while (!queue.empty()) {
+    const auto v = queue.top().second;
+    queue.pop();
+    for (auto n : near[v]) {
+      if (tag[n] >= 0) continue;
+      tag[n] = tag[v];
+      queue.emplace(depth[n], n);
+    }
+  }
+}
+
 // Splits one Euclidean cluster where sherds touch or lean on each other. A sherd's surface is
 // a patch that stays wide everywhere, while two sherds meet at a point or along a short stretch
 // of their edges: eroding the cluster (voxels within `erosion` of its boundary, measured along
@@ -263,7 +283,7 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
   }
   for (auto v : cluster) core[v] = 0;  // `core` is sized for all voxels; leave it clean
   if (cores < 2) return {cluster};
-  geodesic_from(near, centres, cluster, seeds, distance, tag);
+  flood_from_cores(near, cluster, seeds, distance, tag);
   std::vector<std::vector<std::uint32_t>> parts(static_cast<std::size_t>(cores));
   for (auto v : cluster) parts[tag[v]].push_back(v);
   return parts;
@@ -287,18 +307,20 @@ std::vector<std::vector<std::uint32_t>> clusters(const std::vector<Vec3f>& point
   std::iota(all.begin(), all.end(), 0u);
   const double leaf = tolerance / kVoxelsPerTolerance;
   // A core must be as large as the smallest sherd's eroded footprint could be.
-  const double core_side =
-      std::max(params.min_extent_mm - 2.0 * kErosionPerTolerance * tolerance, leaf);
+  const double core_side = std::max(params.min_extent_mm - 2.0 * params.contact_erosion_mm, leaf);
   const auto min_core_voxels =
-      static_cast<std::size_t>(std::max(4.0, 0.5 * core_side * core_side / (leaf * leaf)));
+      static_cast<std::size_t>(std::max(4.0, 1.5 * core_side * core_side / (leaf * leaf)));
   std::vector<float> distance(voxels.centres.size());
   std::vector<int> tag(voxels.centres.size());
 
   std::vector<std::vector<std::uint32_t>> found;
   for (const auto& cluster : components(near, all, {})) {
-    for (const auto& part :
-         split_at_contacts(near, voxels.centres, cluster, tolerance,
-                           kErosionPerTolerance * tolerance, min_core_voxels, distance, tag)) {
+    const auto parts =
+        params.contact_erosion_mm > 0.0
+            ? split_at_contacts(near, voxels.centres, cluster, tolerance, params.contact_erosion_mm,
+                                min_core_voxels, distance, tag)
+            : std::vector<std::vector<std::uint32_t>>{cluster};
+    for (const auto& part : parts) {
       std::vector<std::uint32_t> members;
       for (auto v : part) {
         for (std::size_t k = voxels.begin[v]; k < voxels.begin[v + 1]; ++k)
