@@ -218,7 +218,6 @@ TEST(SegmentationRealData, TableSceneMug) {
   params.volume_max_z_mm = 1500.0;
   params.cluster_tolerance_mm = 10.0;  // stereo points ~0.75 m away are a few mm apart
   params.plane_distance_mm = 10.0;
-  params.contact_erosion_mm = 0.0;  // objects stand apart; erosion at this scale cuts the handle
   const auto result = seg::segment(scene, params);
   ASSERT_EQ(result.sherds.size(), 1u);
   EXPECT_GT(result.background_points, scene.vertices.size() * 9 / 10);  // table + far room

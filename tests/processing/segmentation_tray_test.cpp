@@ -35,6 +35,7 @@ TEST_P(TouchingTray, EverySherdFoundWholeAndAlone) {
     seg::Params params;
     params.background = background == sim::Background::Black ? seg::BackgroundColour::Black
                                                              : seg::BackgroundColour::White;
+    params.contact_erosion_mm = 5.0;
     const auto result = seg::segment(tray.cloud, params);
     ASSERT_EQ(result.sherds.size(), static_cast<std::size_t>(tray.sherds));
     std::map<int, std::size_t> truth_size;
