@@ -1,5 +1,6 @@
 // Benchmark: segmentation of simulated trays (simulators/tray.h) against their per-point truth.
-//   bench_segmentation [--trays 100] [--seed 1] [--grid 0.5] [--million 3] [--real DIR] [--overview DIR]
+//   bench_segmentation [--trays 100] [--seed 1] [--grid 0.5] [--million 3]
+//                      [--real DIR] [--overview DIR]
 // One JSON line per tray: sherds in truth and found, per-point precision and recall, truth sherds
 // merged with another or split, time. Then a summary line (medians, share of trays with the exact
 // count) and, with --million N, N timings of one ≈ 1 M-point tray (20 sherds, 0.265 mm grid).
@@ -231,7 +232,8 @@ int main(int argc, char** argv) {
       const seg::Result result = seg::segment(scene, real_scene_params());
       const double ms = time_ms(start);
       if (!overview_dir.empty()) {
-        seg::write_overview_png(scene, result, std::filesystem::path(overview_dir) / fmt::format("{}.png", name));
+        seg::write_overview_png(scene, result,
+                                std::filesystem::path(overview_dir) / fmt::format("{}.png", name));
       }
       auto clusters = nlohmann::json::array();
       for (const auto& part : result.sherds) {
