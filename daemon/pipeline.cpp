@@ -8,6 +8,7 @@
 #include "processing/io/model_io.h"
 #include "processing/profile/profile.h"
 #include "processing/registration/registration.h"
+#include "processing/segmentation/overview.h"
 #include "render/plate.h"
 
 #include <fmt/format.h>
@@ -207,6 +208,8 @@ ScanOutcome Pipeline::analyse_scan(const std::string& scan_id, const Mesh& fused
                {{"sherds", parts.sherds.size()}, {"rejected", rejected},
                 {"background_points", parts.background_points}});
   if (parts.sherds.empty()) spdlog::info("no sherds found in scan {}", scan_id);
+  segmentation::write_overview_png(fused, parts, outcome.dir / "segmentation.png");
+  store_.add_artifact(scan_id, "", "segmentation", (outcome.dir / "segmentation.png").string());
 
   auto sherd_docs = nlohmann::json::array();
   for (const auto& part : parts.sherds) {
@@ -225,7 +228,8 @@ ScanOutcome Pipeline::analyse_scan(const std::string& scan_id, const Mesh& fused
   scan_doc["station"] = config_.name;
   scan_doc["segmentation"] = {{"sherds", parts.sherds.size()}, {"rejected", rejected},
                               {"background_points", parts.background_points},
-                              {"message", parts.sherds.empty() ? "no sherds found" : ""}};
+                              {"message", parts.sherds.empty() ? "no sherds found" : ""},
+                              {"overview", "segmentation.png"}};
   scan_doc["sherds"] = sherd_docs;
   scan_doc["stages"] = store_.stages(scan_id);
   write_json_file(outcome.dir / "scan.json", scan_doc);

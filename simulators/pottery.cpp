@@ -146,10 +146,8 @@ void add_sherd(Scene& scene, int index, const VesselProfile& profile, const Sher
   scene.objects.push_back(make_object(truth.id, index + 1, std::move(placed)));
 }
 
-// The kinds of sherd on a tray of `count`, in placement order: rim sherds in about half the
-// places (at least one; two from three sherds on) because they are what gets measured most
-// (diameter, EVE), a base from three sherds on (one in four beyond), body sherds in the rest —
-// in an order shuffled by the seed.
+}  // namespace
+
 std::vector<SherdKind> tray_kinds(int count, Rng& rng) {
   const int rims = (count + 1) / 2;
   const int bases = count >= 3 ? std::max(1, count / 4) : 0;
@@ -161,13 +159,6 @@ std::vector<SherdKind> tray_kinds(int count, Rng& rng) {
   return kinds;
 }
 
-struct BrokenVessel {
-  VesselProfile profile;
-  SherdPiece piece;
-};
-
-// A sherd of `kind` within max_extent_mm from a random vessel: families are drawn until one has
-// room for that kind (a flat plate has no 25 mm of rim height, a short wall no body sherd).
 BrokenVessel break_random_vessel(SherdKind kind, double max_extent_mm, Rng& rng) {
   const VesselLimits limits{.max_diameter_mm = max_vessel_diameter(kind, max_extent_mm)};
   for (int attempt = 0; attempt < 100; ++attempt) {
@@ -181,6 +172,8 @@ BrokenVessel break_random_vessel(SherdKind kind, double max_extent_mm, Rng& rng)
       "sherd simulator: no vessel gives a {} sherd within {:.0f} mm: use fewer sherds per scene",
       to_string(kind), max_extent_mm));
 }
+
+namespace {
 
 // Where the frame's sherds stand: evenly around a ring, or at the centre for a single one.
 double frame_ring_radius(int sherds) { return sherds <= 1 ? 0.0 : kFrameRingRadiusMm; }

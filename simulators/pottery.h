@@ -43,6 +43,7 @@
 #pragma once
 
 #include "core/types.h"
+#include "simulators/vessel.h"
 
 #include <nlohmann/json_fwd.hpp>
 
@@ -121,6 +122,20 @@ Scene make_scene(const SceneSpec& spec);
 Mesh merged_mesh(const Scene& scene);
 
 nlohmann::json truth_to_json(const Scene& scene);
+
+// The kinds of sherd on a tray of `count`, in placement order: rim sherds in about half the
+// places (at least one; two from three sherds on) because they are what gets measured most
+// (diameter, EVE), a base from three sherds on (one in four beyond), body sherds in the rest —
+// in an order shuffled by the seed.
+std::vector<SherdKind> tray_kinds(int count, Rng& rng);
+
+// A sherd of `kind` within max_extent_mm from a random vessel: families are drawn until one has
+// room for that kind (a flat plate has no 25 mm of rim height, a short wall no body sherd).
+struct BrokenVessel {
+  VesselProfile profile;
+  SherdPiece piece;
+};
+BrokenVessel break_random_vessel(SherdKind kind, double max_extent_mm, Rng& rng);
 
 // Writes <dir>/scene.ply (all objects merged, colour + normals, binary) and <dir>/truth.json.
 void write_scene(const Scene& scene, const std::filesystem::path& dir);
