@@ -459,4 +459,55 @@ AxisEstimate estimate_axis(const Cloud& sherd, const Params& params) {
   return estimate;
 }
 
+namespace {
+struct MethodName {
+  Method method;
+  const char* name;
+};
+constexpr MethodName kMethods[] = {{Method::NormalLines, "normal-lines"},
+                                   {Method::ReferenceSemiAutomatic, "reference-semi"},
+                                   {Method::ReferenceAutomatic, "reference-auto"},
+                                   {Method::Refined, "refined"}};
+}  // namespace
+
+AxisEstimate estimate(const Cloud& sherd, Method method) {
+  switch (method) {
+    case Method::NormalLines:
+      return estimate_axis(sherd);
+    case Method::ReferenceSemiAutomatic:
+      return estimate_axis_reference(sherd, {.variant = ReferenceVariant::SemiAutomatic});
+    case Method::ReferenceAutomatic:
+      return estimate_axis_reference(sherd, {.variant = ReferenceVariant::Automatic});
+    case Method::Refined:
+      return refine_axis(sherd, estimate_axis(sherd));
+  }
+  return {};
+}
+
+const char* to_string(Method method) {
+  for (const auto& m : kMethods) {
+    if (m.method == method) return m.name;
+  }
+  return "?";
+}
+
+std::optional<Method> method_from_string(const std::string& name) {
+  for (const auto& m : kMethods) {
+    if (name == m.name) return m.method;
+  }
+  return std::nullopt;
+}
+
+std::vector<Method> all_methods() {
+  std::vector<Method> out;
+  for (const auto& m : kMethods) out.push_back(m.method);
+  return out;
+}
+
+std::string method_names() {
+  std::string out;
+  for (const auto& m : kMethods) out += (out.empty() ? "" : ", ") + std::string(m.name);
+  return out;
+}
+
 }  // namespace sherd::axis

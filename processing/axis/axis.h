@@ -13,7 +13,9 @@
 #include "core/types.h"
 
 #include <cstdint>
+#include <optional>
 #include <string>
+#include <vector>
 
 namespace sherd::axis {
 
@@ -61,5 +63,50 @@ struct Params {
 
 // Needs normals (sherd.has_normals()).
 AxisEstimate estimate_axis(const Cloud& sherd, const Params& params = {});
+
+// The reference method: circle templates fitted into the sections of the sherd with sets of
+// parallel planes; the axis is the line perpendicular to the planes through the circle centres,
+// found where the centres align best (the least spread of the centres across the planes).
+enum class ReferenceVariant {
+  // Planes start perpendicular to the world z axis: the sherd stands upright within ~20°.
+  SemiAutomatic,
+  // Two stages from the balancing plane (best-fit plane of the inner side): the in-plane direction
+  // whose sections' centres align best lies in the plane of symmetry; the plane set is then
+  // turned within that plane until the centres align best.
+  Automatic,
+};
+struct ReferenceParams {
+  ReferenceVariant variant = ReferenceVariant::Automatic;
+  int sections = 9;                   // planes across the sherd's extent along the plane normal
+  double slab_half_width_mm = 0.4;    // points this close to a plane belong to its section
+  int min_section_points = 20;
+};
+AxisEstimate estimate_axis_reference(const Cloud& sherd, const ReferenceParams& params = {});
+
+// Profile-consistency refinement: the 4-DOF axis for which the points of all azimuths, mapped into
+// the (radius, height) half-plane, fall onto one thin profile curve (inner and outer skin), by
+// Levenberg-Marquardt with a robust (Cauchy) loss on each point's distance to the local line through
+// its neighbours in that half-plane from other azimuths. Fracture faces (normals out of the
+// half-plane) are down-weighted. angle_sd_deg / offset_sd_mm from the covariance of the fit.
+struct RefineParams {
+  std::size_t max_points = 6000;       // subsampled (deterministically) above this
+  int rounds = 4;                      // neighbourhoods are re-found from the axis of each round
+  double first_radius_mm = 3.0;        // neighbourhood radius in the half-plane, first round …
+  double last_radius_mm = 1.0;         // … shrinking to this
+  int max_neighbours = 30;
+  double max_move_deg = 10.0;          // a refinement that turns the axis further diverged
+  double sd_inflation = 1.0;           // factor on the covariance's sds
+  std::uint64_t seed = 11;
+};
+AxisEstimate refine_axis(const Cloud& sherd, const AxisEstimate& start, const RefineParams& params = {});
+
+// The methods, selectable by name (config, bench): normal-lines (estimate_axis), reference-semi /
+// reference-auto (estimate_axis_reference), refined (normal lines, then refine_axis; the default).
+enum class Method { NormalLines, ReferenceSemiAutomatic, ReferenceAutomatic, Refined };
+AxisEstimate estimate(const Cloud& sherd, Method method);
+const char* to_string(Method method);
+std::optional<Method> method_from_string(const std::string& name);
+std::vector<Method> all_methods();
+std::string method_names();  // "normal-lines, reference-semi, …" for messages
 
 }  // namespace sherd::axis
