@@ -85,15 +85,22 @@ AxisEstimate estimate_axis_reference(const Cloud& sherd, const ReferenceParams& 
 
 // Profile-consistency refinement: the 4-DOF axis for which the points of all azimuths, mapped into
 // the (radius, height) half-plane, fall onto one thin profile curve (inner and outer skin), by
-// Levenberg-Marquardt with a robust (Cauchy) loss on each point's distance to the local line through
-// its neighbours in that half-plane from other azimuths. Fracture faces (normals out of the
+// Levenberg-Marquardt with a robust (Cauchy) loss on each point's distance to the mean of its
+// neighbours in that half-plane from other azimuths (along its normal). Fracture faces (normals out of the
 // half-plane) are down-weighted. angle_sd_deg / offset_sd_mm from the covariance of the fit.
 struct RefineParams {
   std::size_t max_points = 6000;       // subsampled (deterministically) above this
   int rounds = 4;                      // neighbourhoods are re-found from the axis of each round
-  double first_radius_mm = 3.0;        // neighbourhood radius in the half-plane, first round …
-  double last_radius_mm = 1.0;         // … shrinking to this
+  // Neighbourhood window in the half-plane: along the profile; across it, first round, then
+  // 6 robust sds of the spread about the last round's axis, but no less than min_across_mm.
+  double along_mm = 1.0;
+  double first_across_mm = 3.0;
+  double min_across_mm = 0.5;
   int max_neighbours = 30;
+  // A skin point has an opposite-facing partner straight through the wall within max_wall_mm;
+  // points without one (fracture faces, the lip) weigh fracture_weight.
+  double max_wall_mm = 15.0;
+  double fracture_weight = 0.1;
   double max_move_deg = 10.0;          // a refinement that turns the axis further diverged
   double sd_inflation = 1.0;           // factor on the covariance's sds
   std::uint64_t seed = 11;

@@ -6,7 +6,7 @@
 // neighbour at the same azimuth agrees about any axis). The neighbourhoods are fixed within a round
 // so that the cost is smooth in the 4 axis parameters; Levenberg-Marquardt (Eigen) minimises it with
 // Cauchy weights (iteratively reweighted: lips and breaks that wander are outliers), and the next
-// round re-finds neighbourhoods about the new axis with a smaller radius.
+// round re-finds neighbourhoods about the new axis, in a window scaled to the new spread.
 #include "processing/axis/axis.h"
 
 #include <Eigen/Eigenvalues>
@@ -16,6 +16,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numeric>
 #include <random>
 #include <unordered_map>
@@ -55,24 +56,22 @@ void to_half_plane(const std::vector<Vec3d>& points, const std::vector<Vec3d>& n
   }
 }
 
-// Distance of point i from the PCA line of its neighbours, signed along its own half-plane normal.
+// Distance of point i from the mean of its neighbours, along its own half-plane normal: the mean
+// of neighbours within a short window along the profile lies on the profile curve.
 double local_line_distance(const std::vector<HalfPlanePoint>& hp, std::uint32_t i,
                            const std::vector<std::uint32_t>& neighbours) {
   Vec2 mean = Vec2::Zero();
   for (auto j : neighbours) mean += hp[j].rh;
   mean /= static_cast<double>(neighbours.size());
-  Eigen::Matrix2d c = Eigen::Matrix2d::Zero();
-  for (auto j : neighbours) c += (hp[j].rh - mean) * (hp[j].rh - mean).transpose();
-  Vec2 n = Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(c).eigenvectors().col(0);
-  if (n.dot(hp[i].normal) < 0.0) n = -n;
-  return n.dot(hp[i].rh - mean);
+  return hp[i].normal.normalized().dot(hp[i].rh - mean);
 }
 
 struct Problem {
   std::vector<Vec3d> points, normals;  // centred on the sherd's centroid
   std::vector<std::uint32_t> used;     // points with a neighbourhood this round
   std::vector<std::vector<std::uint32_t>> neighbours;  // per used point
-  std::vector<double> sqrt_weight;                      // per used point
+  std::vector<double> sqrt_face_weight;                 // per used point: skin 1, fracture less
+  double cauchy_scale_mm = 1.0;
 };
 
 struct ConsistencyFunctor {
@@ -95,58 +94,94 @@ struct ConsistencyFunctor {
   int operator()(const Eigen::VectorXd& x, Eigen::VectorXd& residuals) const {
     to_half_plane(problem->points, problem->normals, axis_at(x), hp);
     for (std::size_t k = 0; k < problem->used.size(); ++k) {
+      // Cauchy loss as a residual: its square is c² log(1 + (r/c)²), so that LM minimises the
+      // robust cost itself and the weights follow the axis within the round.
+      const double r = local_line_distance(hp, problem->used[k], problem->neighbours[k]);
+      const double c = problem->cauchy_scale_mm;
       residuals[static_cast<Eigen::Index>(k)] =
-          problem->sqrt_weight[k] * local_line_distance(hp, problem->used[k], problem->neighbours[k]);
+          problem->sqrt_face_weight[k] * std::copysign(c * std::sqrt(std::log1p((r / c) * (r / c))), r);
     }
     return 0;
   }
 };
 
-// Neighbourhoods in the half-plane about `axis`: for each point with a normal mostly within the
-// half-plane (a skin or a lip, not a side break), up to max_neighbours nearest points within
-// `radius` whose half-plane normals agree (the same skin) and whose azimuth differs by at least
-// `min_dphi` (another part of the sherd).
-void find_neighbourhoods(Problem& problem, const std::vector<HalfPlanePoint>& hp, double radius, double min_dphi,
-                         int max_neighbours) {
-  // A uniform grid over the half-plane: one fixed radius per round (the same reasoning as the
-  // normal-line method's grid).
-  auto key = [radius](const Vec2& p) {
-    const auto cx = static_cast<std::int64_t>(std::floor(p.x() / radius));
-    const auto cy = static_cast<std::int64_t>(std::floor(p.y() / radius));
-    return (cx << 32) ^ (cy & 0xffffffff);
-  };
+// Neighbourhoods in the half-plane about the current axis. For each point whose normal lies mostly
+// within the half-plane (a skin or a lip, not a side break): the points within `along_mm` of it
+// along its profile tangent and `across_mm` across, whose half-plane normals agree (the same skin)
+// and whose azimuth differs by at least `min_dphi` (another part of the sherd). The window is wide
+// across (several times the spread) and the neighbours are an evenly strided subset, not the
+// nearest: choosing the nearest across would choose those that agree with the current axis.
+void find_neighbourhoods(Problem& problem, const std::vector<HalfPlanePoint>& hp, double along_mm, double across_mm,
+                         double min_dphi, int max_neighbours) {
+  // A uniform grid over the half-plane, one window size per round (hand-written for the same
+  // reason as the normal-line method's grid).
+  const double cell = std::max(along_mm, across_mm);
+  auto key = [](std::int64_t cx, std::int64_t cy) { return (cx << 32) ^ (cy & 0xffffffff); };
+  auto cell_of = [cell](double v) { return static_cast<std::int64_t>(std::floor(v / cell)); };
   std::unordered_map<std::int64_t, std::vector<std::uint32_t>> grid;
-  for (std::uint32_t i = 0; i < hp.size(); ++i) grid[key(hp[i].rh)].push_back(i);
+  for (std::uint32_t i = 0; i < hp.size(); ++i) grid[key(cell_of(hp[i].rh.x()), cell_of(hp[i].rh.y()))].push_back(i);
   problem.used.clear();
   problem.neighbours.clear();
-  std::vector<std::pair<double, std::uint32_t>> found;
+  std::vector<std::uint32_t> found;
   for (std::uint32_t i = 0; i < hp.size(); ++i) {
     if (hp[i].normal.norm() < 0.7) continue;
-    const Vec2 ni = hp[i].normal.normalized();
+    const Vec2 ni = hp[i].normal.normalized(), ti(-ni.y(), ni.x());
     found.clear();
-    const auto cx = static_cast<std::int64_t>(std::floor(hp[i].rh.x() / radius));
-    const auto cy = static_cast<std::int64_t>(std::floor(hp[i].rh.y() / radius));
+    const auto cx = cell_of(hp[i].rh.x()), cy = cell_of(hp[i].rh.y());
     for (std::int64_t dx = -1; dx <= 1; ++dx)
       for (std::int64_t dy = -1; dy <= 1; ++dy) {
-        const auto it = grid.find(((cx + dx) << 32) ^ ((cy + dy) & 0xffffffff));
+        const auto it = grid.find(key(cx + dx, cy + dy));
         if (it == grid.end()) continue;
         for (auto j : it->second) {
-          const double d2 = (hp[j].rh - hp[i].rh).squaredNorm();
-          if (d2 > radius * radius || hp[j].normal.norm() < 0.7) continue;
-          if (hp[j].normal.normalized().dot(ni) < 0.7) continue;
+          const Vec2 d = hp[j].rh - hp[i].rh;
+          if (std::abs(d.dot(ti)) > along_mm || std::abs(d.dot(ni)) > across_mm) continue;
+          if (hp[j].normal.norm() < 0.7 || hp[j].normal.normalized().dot(ni) < 0.7) continue;
           if (std::abs(std::remainder(hp[j].phi - hp[i].phi, 2 * M_PI)) < min_dphi) continue;
-          found.push_back({d2, j});
+          found.push_back(j);
         }
       }
     constexpr std::size_t kMinNeighbours = 5;
     if (found.size() < kMinNeighbours) continue;
-    const std::size_t keep = std::min<std::size_t>(found.size(), max_neighbours);
-    std::partial_sort(found.begin(), found.begin() + keep, found.end());
-    std::vector<std::uint32_t> nb(keep);
-    for (std::size_t k = 0; k < keep; ++k) nb[k] = found[k].second;
+    const std::size_t stride = (found.size() + max_neighbours - 1) / max_neighbours;
+    std::vector<std::uint32_t> nb;
+    for (std::size_t k = 0; k < found.size(); k += stride) nb.push_back(found[k]);
     problem.used.push_back(i);
     problem.neighbours.push_back(std::move(nb));
   }
+}
+
+// Whether each point is on a skin: it has a partner facing the other way straight through the wall
+// (along its -normal, within max_wall_mm, off the line by at most `tolerance_mm`). A fracture face
+// or a lip looks along the wall: its opposite face, if any, is the far end of the sherd.
+std::vector<bool> skin_points(const std::vector<HalfPlanePoint>& hp, double max_wall_mm, double tolerance_mm) {
+  constexpr double kCell = 2.0, kStep = 1.0;
+  auto key = [](std::int64_t cx, std::int64_t cy) { return (cx << 32) ^ (cy & 0xffffffff); };
+  auto cell_of = [](double v) { return static_cast<std::int64_t>(std::floor(v / kCell)); };
+  std::unordered_map<std::int64_t, std::vector<std::uint32_t>> grid;
+  for (std::uint32_t i = 0; i < hp.size(); ++i) grid[key(cell_of(hp[i].rh.x()), cell_of(hp[i].rh.y()))].push_back(i);
+  std::vector<bool> skin(hp.size(), false);
+  for (std::uint32_t i = 0; i < hp.size() ; ++i) {
+    if (hp[i].normal.norm() < 0.7) continue;
+    const Vec2 n = hp[i].normal.normalized();
+    std::int64_t last = std::numeric_limits<std::int64_t>::min();
+    for (double t = kStep; t <= max_wall_mm && !skin[i]; t += kStep) {
+      const Vec2 q = hp[i].rh - t * n;
+      const std::int64_t k = key(cell_of(q.x()), cell_of(q.y()));
+      if (k == last) continue;
+      last = k;
+      const auto it = grid.find(k);
+      if (it == grid.end()) continue;
+      for (auto j : it->second) {
+        const Vec2 d = hp[j].rh - hp[i].rh;
+        if (hp[j].normal.dot(n) > -0.7 * hp[j].normal.norm() || -d.dot(n) < 0.3) continue;
+        if (std::abs(d.x() * n.y() - d.y() * n.x()) <= tolerance_mm) {
+          skin[i] = true;
+          break;
+        }
+      }
+    }
+  }
+  return skin;
 }
 
 double median_of(std::vector<double> v) {
@@ -184,9 +219,8 @@ AxisEstimate refine_axis(const Cloud& sherd, const AxisEstimate& start, const Re
   std::vector<HalfPlanePoint> hp;
   Eigen::Matrix4d covariance = Eigen::Matrix4d::Zero();
   double sigma_mm = 0.0;
+  double across_mm = params.first_across_mm;
   for (int round = 0; round < params.rounds; ++round) {
-    const double t = params.rounds > 1 ? static_cast<double>(round) / (params.rounds - 1) : 1.0;
-    const double radius = params.first_radius_mm * std::pow(params.last_radius_mm / params.first_radius_mm, t);
     to_half_plane(problem.points, problem.normals, axis, hp);
     // The sherd's arc about the axis, from its circular mean (the azimuths may wrap at ±pi).
     double sum_sin = 0.0, sum_cos = 0.0;
@@ -199,23 +233,27 @@ AxisEstimate refine_axis(const Cloud& sherd, const AxisEstimate& start, const Re
       phi_hi = std::max(phi_hi, a);
     }
     // Neighbours from at least 1/8 of the sherd's arc away.
-    find_neighbourhoods(problem, hp, radius, (phi_hi - phi_lo) / 8.0, params.max_neighbours);
+    find_neighbourhoods(problem, hp, params.along_mm, across_mm, (phi_hi - phi_lo) / 8.0, params.max_neighbours);
     constexpr std::size_t kMinUsed = 100;
     if (problem.used.size() < kMinUsed) {
       estimate.method = start.method;  // nothing to refine with: the start stands
       return estimate;
     }
-    // Cauchy weights from the residuals about the current axis, at a robust scale (MAD).
-    std::vector<double> residual(problem.used.size()), absolute(problem.used.size());
+    // Fracture faces and the lip count a tenth of a skin point.
+    const std::vector<bool> skin = skin_points(hp, params.max_wall_mm, std::max(0.5, across_mm / 2));
+    problem.sqrt_face_weight.resize(problem.used.size());
     for (std::size_t k = 0; k < problem.used.size(); ++k) {
-      residual[k] = local_line_distance(hp, problem.used[k], problem.neighbours[k]);
-      absolute[k] = std::abs(residual[k]);
+      problem.sqrt_face_weight[k] = skin[problem.used[k]] ? 1.0 : std::sqrt(params.fracture_weight);
     }
-    const double scale = std::max(2.385 * 1.4826 * median_of(absolute), 0.01);  // Cauchy's 95 % constant
-    problem.sqrt_weight.resize(problem.used.size());
+    // The Cauchy scale from the residuals about the current axis (MAD).
+    std::vector<double> absolute(problem.used.size());
     for (std::size_t k = 0; k < problem.used.size(); ++k) {
-      problem.sqrt_weight[k] = 1.0 / std::sqrt(1.0 + std::pow(residual[k] / scale, 2));
+      absolute[k] = std::abs(local_line_distance(hp, problem.used[k], problem.neighbours[k]));
     }
+    const double sigma = 1.4826 * median_of(absolute);
+    problem.cauchy_scale_mm = std::max(2.385 * sigma, 0.01);  // Cauchy's 95 % efficiency constant
+    // The next round's window across the profile: wide against the spread about this round's axis.
+    across_mm = std::max(params.min_across_mm, 6.0 * sigma);
 
     ConsistencyFunctor functor;
     functor.problem = &problem;
@@ -227,6 +265,7 @@ AxisEstimate refine_axis(const Cloud& sherd, const AxisEstimate& start, const Re
     solver.parameters.maxfev = 100;
     Eigen::VectorXd x = Eigen::VectorXd::Zero(4);
     solver.minimize(x);
+    if (!x.allFinite()) break;
     axis = functor.axis_at(x);
     axis.point -= axis.point.dot(axis.direction) * axis.direction;
 
