@@ -5,20 +5,20 @@
 // on it, is compared with the vessel's truth. Prints one JSON object per sherd and method, then a
 // summary per method and per method × fragment-size class (medians and 90th percentiles).
 //   bench_axis [--sherds 300] [--seed 1] [--density 2.5] [--methods normal-lines,refined,…]
-#include "bench/bench_stats.h"
 #include "processing/axis/axis.h"
-#include "processing/profile/profile.h"
-#include "simulators/vessel.h"
 
 #include <CLI/CLI.hpp>
-#include <nlohmann/json.hpp>
-
 #include <chrono>
 #include <cmath>
 #include <iostream>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <sstream>
+
+#include "bench/bench_stats.h"
+#include "processing/profile/profile.h"
+#include "simulators/vessel.h"
 
 namespace {
 
@@ -50,7 +50,8 @@ Eigen::Matrix3d random_rotation(sim::Rng& rng) {
 // A scan-like point cloud of a closed mesh: `density` points per mm² of surface, normals
 // interpolated from the vertex normals (a crease between surfaces stays sharp: the simulator
 // gives each surface its own vertices), depth noise along the normal, `holes` spherical gaps.
-Cloud sample_scan(const sherd::Mesh& mesh, double density, double noise_mm, int holes, sim::Rng& rng) {
+Cloud sample_scan(const sherd::Mesh& mesh, double density, double noise_mm, int holes,
+                  sim::Rng& rng) {
   const auto& P = mesh.vertices.points;
   const auto& N = mesh.vertices.normals;
   Cloud cloud;
@@ -63,7 +64,8 @@ Cloud sample_scan(const sherd::Mesh& mesh, double density, double noise_mm, int 
     for (int k = 0; k < count; ++k) {
       double u = rng.uniform(), v = rng.uniform();
       if (u + v > 1.0) u = 1.0 - u, v = 1.0 - v;
-      const float w0 = static_cast<float>(1.0 - u - v), w1 = static_cast<float>(u), w2 = static_cast<float>(v);
+      const float w0 = static_cast<float>(1.0 - u - v), w1 = static_cast<float>(u),
+                  w2 = static_cast<float>(v);
       const Vec3f n = (w0 * N[t[0]] + w1 * N[t[1]] + w2 * N[t[2]]).normalized();
       const Vec3f p = w0 * a + w1 * b + w2 * c + static_cast<float>(noise_mm * rng.normal()) * n;
       cloud.points.push_back(p);
@@ -86,7 +88,8 @@ Cloud sample_scan(const sherd::Mesh& mesh, double density, double noise_mm, int 
 // One simulated sherd: a vessel of `family`, a piece of `kind` within max_extent_mm, sampled and
 // placed by a random pose. nullopt where the vessel has no room for that kind of piece.
 std::optional<std::pair<Cloud, Truth>> make_sherd(sim::Family family, sim::SherdKind kind,
-                                                  double max_extent_mm, double density, sim::Rng& rng) {
+                                                  double max_extent_mm, double density,
+                                                  sim::Rng& rng) {
   const sim::VesselLimits limits{.max_diameter_mm = sim::max_vessel_diameter(kind, max_extent_mm)};
   const sim::VesselProfile profile = sim::make_vessel_profile(family, rng, limits);
   if (!sim::can_break(profile, kind, max_extent_mm)) return std::nullopt;
@@ -101,7 +104,8 @@ std::optional<std::pair<Cloud, Truth>> make_sherd(sim::Family family, sim::Sherd
   Cloud cloud = sample_scan(piece.mesh, density, truth.noise_mm, rng.integer(0, 4), rng);
   Pose pose = Pose::Identity();
   pose.linear() = random_rotation(rng);
-  pose.translation() = Vec3d(rng.uniform(-200, 200), rng.uniform(-200, 200), rng.uniform(-200, 200));
+  pose.translation() =
+      Vec3d(rng.uniform(-200, 200), rng.uniform(-200, 200), rng.uniform(-200, 200));
   Vec3d centroid = Vec3d::Zero();
   for (const auto& p : cloud.points) centroid += p.cast<double>();
   centroid /= static_cast<double>(std::max<std::size_t>(cloud.size(), 1));
@@ -119,11 +123,15 @@ std::optional<std::pair<Cloud, Truth>> make_sherd(sim::Family family, sim::Sherd
 
 // The semi-automatic reference method needs the sherd upright within 20°: the same sherd turned so
 // that its axis (base → rim) lies within max_tilt_deg of the world z axis, in a random direction.
-std::pair<Cloud, Truth> stood_up(const Cloud& cloud, const Truth& truth, double max_tilt_deg, sim::Rng& rng) {
-  const double tilt = rng.uniform(0.0, max_tilt_deg) * M_PI / 180.0, azimuth = rng.uniform(0.0, 2.0 * M_PI);
-  const Vec3d target(std::sin(tilt) * std::cos(azimuth), std::sin(tilt) * std::sin(azimuth), std::cos(tilt));
+std::pair<Cloud, Truth> stood_up(const Cloud& cloud, const Truth& truth, double max_tilt_deg,
+                                 sim::Rng& rng) {
+  const double tilt = rng.uniform(0.0, max_tilt_deg) * M_PI / 180.0,
+               azimuth = rng.uniform(0.0, 2.0 * M_PI);
+  const Vec3d target(std::sin(tilt) * std::cos(azimuth), std::sin(tilt) * std::sin(azimuth),
+                     std::cos(tilt));
   Pose turn = Pose::Identity();
-  turn.linear() = Eigen::Quaterniond::FromTwoVectors(truth.axis_direction, target).toRotationMatrix();
+  turn.linear() =
+      Eigen::Quaterniond::FromTwoVectors(truth.axis_direction, target).toRotationMatrix();
   Cloud upright = cloud;
   upright.transform(turn);
   Truth t = truth;
@@ -142,8 +150,8 @@ std::string size_class(double share) {
 // The figures of one method on one sherd; NaN where not measured.
 struct Row {
   bool found = false;
-  double seconds = NAN, axis_deg = NAN, offset_mm = NAN, rim_diameter_pct = NAN, rim_percent_points = NAN,
-         wall_mm = NAN;
+  double seconds = NAN, axis_deg = NAN, offset_mm = NAN, rim_diameter_pct = NAN,
+         rim_percent_points = NAN, wall_mm = NAN;
   double angle_sd_deg = NAN, offset_sd_mm = NAN;
   std::string reason;
 };
@@ -157,7 +165,8 @@ Row evaluate(const Cloud& cloud, const Truth& truth, sherd::axis::Method method)
   row.reason = axis.reason;
   if (!axis.found) return row;
   const Vec3d direction = axis.direction.normalized();
-  row.axis_deg = std::acos(std::min(1.0, std::abs(direction.dot(truth.axis_direction)))) * 180.0 / M_PI;
+  row.axis_deg =
+      std::acos(std::min(1.0, std::abs(direction.dot(truth.axis_direction)))) * 180.0 / M_PI;
   // Distance of the estimated axis line from the true axis point at the sherd's height.
   row.offset_mm = (truth.axis_point - axis.point).cross(direction).norm();
   row.angle_sd_deg = axis.angle_sd_deg;
@@ -166,10 +175,13 @@ Row evaluate(const Cloud& cloud, const Truth& truth, sherd::axis::Method method)
     const auto analysis = sherd::profile::analyse(cloud, axis);
     const auto& m = analysis.measurements;
     if (truth.rim_diameter_mm && m.rim_diameter_mm) {
-      row.rim_diameter_pct = 100.0 * std::abs(*m.rim_diameter_mm - *truth.rim_diameter_mm) / *truth.rim_diameter_mm;
+      row.rim_diameter_pct =
+          100.0 * std::abs(*m.rim_diameter_mm - *truth.rim_diameter_mm) / *truth.rim_diameter_mm;
     }
-    if (truth.rim_percent && m.rim_percent) row.rim_percent_points = std::abs(*m.rim_percent - *truth.rim_percent);
-    if (m.wall_thickness_mm.mean > 0.0) row.wall_mm = std::abs(m.wall_thickness_mm.mean - truth.wall_thickness_mm);
+    if (truth.rim_percent && m.rim_percent)
+      row.rim_percent_points = std::abs(*m.rim_percent - *truth.rim_percent);
+    if (m.wall_thickness_mm.mean > 0.0)
+      row.wall_mm = std::abs(m.wall_thickness_mm.mean - truth.wall_thickness_mm);
   } catch (const std::exception& e) {
     row.reason = std::string("no profile: ") + e.what();
   }
@@ -202,31 +214,37 @@ struct Summary {
                             {"p90", number_or_null(quantile(v, 0.9))},
                             {"n", v.size()}};
     };
-    return {{"sherds", sherds},
-            {"found_share", sherds ? static_cast<double>(found) / sherds : 0.0},
-            {"axis_angle_error_deg", stats(axis_deg)},
-            {"axis_offset_mm", stats(offset_mm)},
-            {"rim_diameter_error_pct", stats(rim_diameter_pct)},
-            {"rim_percent_error_points", stats(rim_percent_points)},
-            {"wall_thickness_error_mm", stats(wall_mm)},
-            {"seconds_per_sherd", stats(seconds)},
-            // Honesty of the reported sds: share of sherds whose true error is within 2 sd.
-            {"angle_within_2sd_share", number_or_null(with_sd ? double(covered_angle) / with_sd : NAN)},
-            {"offset_within_2sd_share", number_or_null(with_sd ? double(covered_offset) / with_sd : NAN)}};
+    return {
+        {"sherds", sherds},
+        {"found_share", sherds ? static_cast<double>(found) / sherds : 0.0},
+        {"axis_angle_error_deg", stats(axis_deg)},
+        {"axis_offset_mm", stats(offset_mm)},
+        {"rim_diameter_error_pct", stats(rim_diameter_pct)},
+        {"rim_percent_error_points", stats(rim_percent_points)},
+        {"wall_thickness_error_mm", stats(wall_mm)},
+        {"seconds_per_sherd", stats(seconds)},
+        // Honesty of the reported sds: share of sherds whose true error is within 2 sd.
+        {"angle_within_2sd_share", number_or_null(with_sd ? double(covered_angle) / with_sd : NAN)},
+        {"offset_within_2sd_share",
+         number_or_null(with_sd ? double(covered_offset) / with_sd : NAN)}};
   }
 };
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"bench_axis: every axis method on the same simulated sherds, against the vessel's truth"};
+  CLI::App app{
+      "bench_axis: every axis method on the same simulated sherds, against the vessel's truth"};
   int sherds = 300;
   std::uint64_t seed = 1;
   double density = 2.5;
   std::string methods_arg;
-  app.add_option("--sherds", sherds, "number of simulated sherds")->capture_default_str()->check(CLI::PositiveNumber);
+  app.add_option("--sherds", sherds, "number of simulated sherds")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
   app.add_option("--seed", seed)->capture_default_str();
-  app.add_option("--density", density, "sampled points per mm² of sherd surface")->capture_default_str();
+  app.add_option("--density", density, "sampled points per mm² of sherd surface")
+      ->capture_default_str();
   app.add_option("--methods", methods_arg, "comma-separated method names (default: all)");
   CLI11_PARSE(app, argc, argv);
 
@@ -235,15 +253,16 @@ int main(int argc, char** argv) {
   for (std::string name; std::getline(names, name, ',');) {
     const auto m = sherd::axis::method_from_string(name);
     if (!m) {
-      std::cerr << "bench_axis: unknown method '" << name << "'; known: " << sherd::axis::method_names() << "\n";
+      std::cerr << "bench_axis: unknown method '" << name
+                << "'; known: " << sherd::axis::method_names() << "\n";
       return 2;
     }
     methods.push_back(*m);
   }
   if (methods.empty()) methods = sherd::axis::all_methods();
 
-  const sim::Family families[] = {sim::Family::Bowl, sim::Family::Plate, sim::Family::Beaker, sim::Family::Jar,
-                                  sim::Family::Amphora};
+  const sim::Family families[] = {sim::Family::Bowl, sim::Family::Plate, sim::Family::Beaker,
+                                  sim::Family::Jar, sim::Family::Amphora};
   const sim::SherdKind kinds[] = {sim::SherdKind::Rim, sim::SherdKind::Body, sim::SherdKind::Base};
   std::map<std::string, Summary> by_method;
   std::map<std::pair<std::string, std::string>, Summary> by_class;
@@ -261,7 +280,8 @@ int main(int argc, char** argv) {
     const auto upright = stood_up(cloud, truth, 20.0, sherd_rng);
     for (const auto method : methods) {
       const bool semi = method == sherd::axis::Method::ReferenceSemiAutomatic;
-      const Row row = semi ? evaluate(upright.first, upright.second, method) : evaluate(cloud, truth, method);
+      const Row row =
+          semi ? evaluate(upright.first, upright.second, method) : evaluate(cloud, truth, method);
       const std::string name = sherd::axis::to_string(method);
       by_method[name].add(row);
       by_class[{name, size_class(truth.circumference_share)}].add(row);
@@ -280,7 +300,8 @@ int main(int argc, char** argv) {
                                   {"angle_sd_deg", number_or_null(row.angle_sd_deg)},
                                   {"offset_sd_mm", number_or_null(row.offset_sd_mm)},
                                   {"rim_diameter_error_pct", number_or_null(row.rim_diameter_pct)},
-                                  {"rim_percent_error_points", number_or_null(row.rim_percent_points)},
+                                  {"rim_percent_error_points",
+                                   number_or_null(row.rim_percent_points)},
                                   {"wall_thickness_error_mm", number_or_null(row.wall_mm)},
                                   {"seconds", row.seconds}}
                        .dump()

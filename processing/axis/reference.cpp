@@ -3,14 +3,14 @@
 // the axis, so with the right plane normal the circle centres of all sections lie on one line along
 // that normal; with a tilted plane set the sections are ellipses whose fitted circles drift across
 // the planes. The spread of the centres, projected into the planes, measures that drift.
-#include "processing/axis/axis.h"
-
-#include <Eigen/Eigenvalues>
 #include <fmt/format.h>
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <limits>
+
+#include "processing/axis/axis.h"
 
 namespace sherd::axis {
 namespace {
@@ -78,8 +78,8 @@ struct Sections {
   double mean_radius_mm = 0.0;
 };
 
-Sections fit_sections(const std::vector<Vec3d>& points, const std::vector<Vec3d>& normals, const Vec3d& normal,
-                      const ReferenceParams& params) {
+Sections fit_sections(const std::vector<Vec3d>& points, const std::vector<Vec3d>& normals,
+                      const Vec3d& normal, const ReferenceParams& params) {
   const Vec3d u = perpendicular_to(normal), v = normal.cross(u);
   double lo = kNoFit, hi = -kNoFit;
   for (const auto& p : points) {
@@ -122,7 +122,8 @@ Sections fit_sections(const std::vector<Vec3d>& points, const std::vector<Vec3d>
 }
 
 // The plane normal whose sections' centres align best, searched by shrinking steps of tilt about
-// `start` (a pattern search: the spread is not smooth in the normal, sections gain and lose points).
+// `start` (a pattern search: the spread is not smooth in the normal, sections gain and lose
+// points).
 Vec3d align_centres(const std::vector<Vec3d>& points, const std::vector<Vec3d>& normals, Vec3d best,
                     const ReferenceParams& params, double step_deg) {
   double best_spread = fit_sections(points, normals, best, params).spread_mm;
@@ -147,8 +148,9 @@ Vec3d align_centres(const std::vector<Vec3d>& points, const std::vector<Vec3d>& 
 }
 
 // Best plane normal among directions cos(a)·x + sin(a)·y, a in [from, to] by `step` (degrees).
-Vec3d best_in_fan(const std::vector<Vec3d>& points, const std::vector<Vec3d>& normals, const Vec3d& x,
-                  const Vec3d& y, double from, double to, double step, const ReferenceParams& params) {
+Vec3d best_in_fan(const std::vector<Vec3d>& points, const std::vector<Vec3d>& normals,
+                  const Vec3d& x, const Vec3d& y, double from, double to, double step,
+                  const ReferenceParams& params) {
   Vec3d best = x;
   double best_spread = kNoFit;
   for (double a = from; a <= to; a += step) {
@@ -161,7 +163,8 @@ Vec3d best_in_fan(const std::vector<Vec3d>& points, const std::vector<Vec3d>& no
 
 // The balancing plane: the best-fit plane of the sherd's inner (concave) side. Returns its
 // in-plane axes and normal (eigenvectors of the inner side's covariance, largest first).
-Eigen::Matrix3d balancing_plane(const std::vector<Vec3d>& points, const std::vector<Vec3d>& normals) {
+Eigen::Matrix3d balancing_plane(const std::vector<Vec3d>& points,
+                                const std::vector<Vec3d>& normals) {
   auto covariance_of = [&](auto&& keep) {
     Vec3d mean = Vec3d::Zero();
     int n = 0;
@@ -175,7 +178,8 @@ Eigen::Matrix3d balancing_plane(const std::vector<Vec3d>& points, const std::vec
     }
     return c;
   };
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> all(covariance_of([](std::size_t) { return true; }));
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> all(
+      covariance_of([](std::size_t) { return true; }));
   Vec3d thin = all.eigenvectors().col(0);
   // Turn the thin direction towards the concave side: the sherd's far parts bend that way.
   double bend = 0.0;
@@ -200,8 +204,9 @@ Eigen::Matrix3d balancing_plane(const std::vector<Vec3d>& points, const std::vec
 
 AxisEstimate estimate_axis_reference(const Cloud& sherd, const ReferenceParams& params) {
   AxisEstimate estimate;
-  estimate.method = params.variant == ReferenceVariant::Automatic ? "reference-circle-templates-automatic"
-                                                                  : "reference-circle-templates-semi-automatic";
+  estimate.method = params.variant == ReferenceVariant::Automatic
+                        ? "reference-circle-templates-automatic"
+                        : "reference-circle-templates-semi-automatic";
   if (!sherd.has_normals() || sherd.size() < 50) {
     estimate.reason = "too few points with normals for plane sections";
     return estimate;
@@ -219,12 +224,14 @@ AxisEstimate estimate_axis_reference(const Cloud& sherd, const ReferenceParams& 
   if (params.variant == ReferenceVariant::Automatic) {
     const Eigen::Matrix3d plane = balancing_plane(points, normals);
     // Stage 1: plane normals within the balancing plane; the best lies in the plane of symmetry.
-    const Vec3d in_symmetry = best_in_fan(points, normals, plane.col(0), plane.col(1), 0.0, 179.0, 5.0, params);
+    const Vec3d in_symmetry =
+        best_in_fan(points, normals, plane.col(0), plane.col(1), 0.0, 179.0, 5.0, params);
     // Stage 2: turn the plane set about the normal of the plane of symmetry.
     normal = best_in_fan(points, normals, in_symmetry, plane.col(2), -85.0, 85.0, 2.5, params);
   }
   // Finish: align the centres by small tilts of the plane set.
-  normal = align_centres(points, normals, normal, params, params.variant == ReferenceVariant::Automatic ? 2.0 : 8.0);
+  normal = align_centres(points, normals, normal, params,
+                         params.variant == ReferenceVariant::Automatic ? 2.0 : 8.0);
   const Sections sections = fit_sections(points, normals, normal, params);
   if (!std::isfinite(sections.spread_mm)) {
     estimate.reason = "no three plane sections hold a circle";

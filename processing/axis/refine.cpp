@@ -4,22 +4,22 @@
 // the points spread. The spread is measured, point by point, as the distance of the point from the
 // line fitted (PCA) through its neighbours in the half-plane that come from other azimuths (a
 // neighbour at the same azimuth agrees about any axis). The neighbourhoods are fixed within a round
-// so that the cost is smooth in the 4 axis parameters; Levenberg-Marquardt (Eigen) minimises it with
-// Cauchy weights (iteratively reweighted: lips and breaks that wander are outliers), and the next
-// round re-finds neighbourhoods about the new axis, in a window scaled to the new spread.
-#include "processing/axis/axis.h"
-
-#include <Eigen/Eigenvalues>
-#include <unsupported/Eigen/NonLinearOptimization>
-#include <unsupported/Eigen/NumericalDiff>
+// so that the cost is smooth in the 4 axis parameters; Levenberg-Marquardt (Eigen) minimises it
+// with Cauchy weights (iteratively reweighted: lips and breaks that wander are outliers), and the
+// next round re-finds neighbourhoods about the new axis, in a window scaled to the new spread.
 #include <fmt/format.h>
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <numeric>
 #include <random>
 #include <unordered_map>
+#include <unsupported/Eigen/NonLinearOptimization>
+#include <unsupported/Eigen/NumericalDiff>
+
+#include "processing/axis/axis.h"
 
 namespace sherd::axis {
 namespace {
@@ -43,8 +43,8 @@ struct HalfPlanePoint {
   Vec2 normal;  // not normalised: its length is the share of the normal within the half-plane
 };
 
-void to_half_plane(const std::vector<Vec3d>& points, const std::vector<Vec3d>& normals, const Axis4& axis,
-                   std::vector<HalfPlanePoint>& out) {
+void to_half_plane(const std::vector<Vec3d>& points, const std::vector<Vec3d>& normals,
+                   const Axis4& axis, std::vector<HalfPlanePoint>& out) {
   const Vec3d x = perpendicular_to(axis.direction), y = axis.direction.cross(x);
   out.resize(points.size());
   for (std::size_t i = 0; i < points.size(); ++i) {
@@ -52,7 +52,9 @@ void to_half_plane(const std::vector<Vec3d>& points, const std::vector<Vec3d>& n
     const double px = d.dot(x), py = d.dot(y);
     const double r = std::hypot(px, py);
     const Vec3d radial = r > 1e-9 ? Vec3d((px * x + py * y) / r) : x;
-    out[i] = {{r, d.dot(axis.direction)}, std::atan2(py, px), {normals[i].dot(radial), normals[i].dot(axis.direction)}};
+    out[i] = {{r, d.dot(axis.direction)},
+              std::atan2(py, px),
+              {normals[i].dot(radial), normals[i].dot(axis.direction)}};
   }
 }
 
@@ -67,10 +69,10 @@ double local_line_distance(const std::vector<HalfPlanePoint>& hp, std::uint32_t 
 }
 
 struct Problem {
-  std::vector<Vec3d> points, normals;  // centred on the sherd's centroid
-  std::vector<std::uint32_t> used;     // points with a neighbourhood this round
+  std::vector<Vec3d> points, normals;                  // centred on the sherd's centroid
+  std::vector<std::uint32_t> used;                     // points with a neighbourhood this round
   std::vector<std::vector<std::uint32_t>> neighbours;  // per used point
-  std::vector<double> sqrt_face_weight;                 // per used point: skin 1, fracture less
+  std::vector<double> sqrt_face_weight;                // per used point: skin 1, fracture less
   double cauchy_scale_mm = 1.0;
 };
 
@@ -89,7 +91,8 @@ struct ConsistencyFunctor {
   int inputs() const { return 4; }
   int values() const { return static_cast<int>(problem->used.size()); }
   Axis4 axis_at(const Eigen::VectorXd& x) const {
-    return {start.point + x[2] * e1 + x[3] * e2, (start.direction + x[0] * e1 + x[1] * e2).normalized()};
+    return {start.point + x[2] * e1 + x[3] * e2,
+            (start.direction + x[0] * e1 + x[1] * e2).normalized()};
   }
   int operator()(const Eigen::VectorXd& x, Eigen::VectorXd& residuals) const {
     to_half_plane(problem->points, problem->normals, axis_at(x), hp);
@@ -99,7 +102,8 @@ struct ConsistencyFunctor {
       const double r = local_line_distance(hp, problem->used[k], problem->neighbours[k]);
       const double c = problem->cauchy_scale_mm;
       residuals[static_cast<Eigen::Index>(k)] =
-          problem->sqrt_face_weight[k] * std::copysign(c * std::sqrt(std::log1p((r / c) * (r / c))), r);
+          problem->sqrt_face_weight[k] *
+          std::copysign(c * std::sqrt(std::log1p((r / c) * (r / c))), r);
     }
     return 0;
   }
@@ -111,15 +115,16 @@ struct ConsistencyFunctor {
 // and whose azimuth differs by at least `min_dphi` (another part of the sherd). The window is wide
 // across (several times the spread) and the neighbours are an evenly strided subset, not the
 // nearest: choosing the nearest across would choose those that agree with the current axis.
-void find_neighbourhoods(Problem& problem, const std::vector<HalfPlanePoint>& hp, double along_mm, double across_mm,
-                         double min_dphi, int max_neighbours) {
+void find_neighbourhoods(Problem& problem, const std::vector<HalfPlanePoint>& hp, double along_mm,
+                         double across_mm, double min_dphi, int max_neighbours) {
   // A uniform grid over the half-plane, one window size per round (hand-written for the same
   // reason as the normal-line method's grid).
   const double cell = std::max(along_mm, across_mm);
   auto key = [](std::int64_t cx, std::int64_t cy) { return (cx << 32) ^ (cy & 0xffffffff); };
   auto cell_of = [cell](double v) { return static_cast<std::int64_t>(std::floor(v / cell)); };
   std::unordered_map<std::int64_t, std::vector<std::uint32_t>> grid;
-  for (std::uint32_t i = 0; i < hp.size(); ++i) grid[key(cell_of(hp[i].rh.x()), cell_of(hp[i].rh.y()))].push_back(i);
+  for (std::uint32_t i = 0; i < hp.size(); ++i)
+    grid[key(cell_of(hp[i].rh.x()), cell_of(hp[i].rh.y()))].push_back(i);
   problem.used.clear();
   problem.neighbours.clear();
   std::vector<std::uint32_t> found;
@@ -153,14 +158,16 @@ void find_neighbourhoods(Problem& problem, const std::vector<HalfPlanePoint>& hp
 // Whether each point is on a skin: it has a partner facing the other way straight through the wall
 // (along its -normal, within max_wall_mm, off the line by at most `tolerance_mm`). A fracture face
 // or a lip looks along the wall: its opposite face, if any, is the far end of the sherd.
-std::vector<bool> skin_points(const std::vector<HalfPlanePoint>& hp, double max_wall_mm, double tolerance_mm) {
+std::vector<bool> skin_points(const std::vector<HalfPlanePoint>& hp, double max_wall_mm,
+                              double tolerance_mm) {
   constexpr double kCell = 2.0, kStep = 1.0;
   auto key = [](std::int64_t cx, std::int64_t cy) { return (cx << 32) ^ (cy & 0xffffffff); };
   auto cell_of = [](double v) { return static_cast<std::int64_t>(std::floor(v / kCell)); };
   std::unordered_map<std::int64_t, std::vector<std::uint32_t>> grid;
-  for (std::uint32_t i = 0; i < hp.size(); ++i) grid[key(cell_of(hp[i].rh.x()), cell_of(hp[i].rh.y()))].push_back(i);
+  for (std::uint32_t i = 0; i < hp.size(); ++i)
+    grid[key(cell_of(hp[i].rh.x()), cell_of(hp[i].rh.y()))].push_back(i);
   std::vector<bool> skin(hp.size(), false);
-  for (std::uint32_t i = 0; i < hp.size() ; ++i) {
+  for (std::uint32_t i = 0; i < hp.size(); ++i) {
     if (hp[i].normal.norm() < 0.7) continue;
     const Vec2 n = hp[i].normal.normalized();
     std::int64_t last = std::numeric_limits<std::int64_t>::min();
@@ -192,7 +199,8 @@ double median_of(std::vector<double> v) {
 
 }  // namespace
 
-AxisEstimate refine_axis(const Cloud& sherd, const AxisEstimate& start, const RefineParams& params) {
+AxisEstimate refine_axis(const Cloud& sherd, const AxisEstimate& start,
+                         const RefineParams& params) {
   if (!start.found) return start;
   AxisEstimate estimate = start;
   estimate.method = start.method + "+profile-consistency";
@@ -233,14 +241,16 @@ AxisEstimate refine_axis(const Cloud& sherd, const AxisEstimate& start, const Re
       phi_hi = std::max(phi_hi, a);
     }
     // Neighbours from at least 1/8 of the sherd's arc away.
-    find_neighbourhoods(problem, hp, params.along_mm, across_mm, (phi_hi - phi_lo) / 8.0, params.max_neighbours);
+    find_neighbourhoods(problem, hp, params.along_mm, across_mm, (phi_hi - phi_lo) / 8.0,
+                        params.max_neighbours);
     constexpr std::size_t kMinUsed = 100;
     if (problem.used.size() < kMinUsed) {
       estimate.method = start.method;  // nothing to refine with: the start stands
       return estimate;
     }
     // Fracture faces and the lip count a tenth of a skin point.
-    const std::vector<bool> skin = skin_points(hp, params.max_wall_mm, std::max(0.5, across_mm / 2));
+    const std::vector<bool> skin =
+        skin_points(hp, params.max_wall_mm, std::max(0.5, across_mm / 2));
     problem.sqrt_face_weight.resize(problem.used.size());
     for (std::size_t k = 0; k < problem.used.size(); ++k) {
       problem.sqrt_face_weight[k] = skin[problem.used[k]] ? 1.0 : std::sqrt(params.fracture_weight);
@@ -271,9 +281,9 @@ AxisEstimate refine_axis(const Cloud& sherd, const AxisEstimate& start, const Re
 
     if (round + 1 == params.rounds) {
       // Covariance of the 4 parameters, Gauss-Newton: σ² (JᵀJ)⁻¹, at the solution; it sees the
-      // noise only. What it misses — a profile that is not quite one curve, a break that pulls — differs
-      // from one part of the sherd to another, so a jackknife over azimuth sectors is added: the fit
-      // again without each sector's residuals in turn.
+      // noise only. What it misses — a profile that is not quite one curve, a break that pulls —
+      // differs from one part of the sherd to another, so a jackknife over azimuth sectors is
+      // added: the fit again without each sector's residuals in turn.
       Eigen::VectorXd fx(functor.values());
       functor(x, fx);
       Eigen::MatrixXd jacobian(functor.values(), 4);
@@ -288,7 +298,8 @@ AxisEstimate refine_axis(const Cloud& sherd, const AxisEstimate& start, const Re
         int left_out = 0;
         for (std::size_t k = 0; k < problem.used.size(); ++k) {
           const double a = std::remainder(hp[problem.used[k]].phi - phi_mid, 2 * M_PI);
-          const int of = std::min(sectors - 1, static_cast<int>((a - phi_lo) / (phi_hi - phi_lo + 1e-12) * sectors));
+          const int of = std::min(
+              sectors - 1, static_cast<int>((a - phi_lo) / (phi_hi - phi_lo + 1e-12) * sectors));
           const bool out = of == sector;
           problem.sqrt_face_weight[k] = out ? 0.0 : weights[k];
           left_out += out;
@@ -313,11 +324,13 @@ AxisEstimate refine_axis(const Cloud& sherd, const AxisEstimate& start, const Re
     }
   }
 
-  const double moved_deg = std::acos(std::min(1.0, std::abs(axis.direction.dot(start_direction)))) / kDegToRad;
+  const double moved_deg =
+      std::acos(std::min(1.0, std::abs(axis.direction.dot(start_direction)))) / kDegToRad;
   if (!(moved_deg <= params.max_move_deg) || !covariance.allFinite()) {
     estimate.method = start.method;
-    estimate.reason = fmt::format("profile-consistency refinement diverged ({:.1f} deg from the start); the start stands",
-                                  moved_deg);
+    estimate.reason = fmt::format(
+        "profile-consistency refinement diverged ({:.1f} deg from the start); the start stands",
+        moved_deg);
     return estimate;
   }
   if (axis.direction.dot(start_direction) < 0.0) axis.direction = -axis.direction;
@@ -325,8 +338,10 @@ AxisEstimate refine_axis(const Cloud& sherd, const AxisEstimate& start, const Re
   estimate.point = centroid + axis.point;
   estimate.rms_mm = sigma_mm;
   // Tilt parameters are tangents of the direction change: their sds are radians. The covariance
-  // treats the residuals as independent; sd_inflation accounts for what it misses (see RefineParams).
-  estimate.angle_sd_deg = params.sd_inflation * std::sqrt(covariance(0, 0) + covariance(1, 1)) / kDegToRad;
+  // treats the residuals as independent; sd_inflation accounts for what it misses (see
+  // RefineParams).
+  estimate.angle_sd_deg =
+      params.sd_inflation * std::sqrt(covariance(0, 0) + covariance(1, 1)) / kDegToRad;
   estimate.offset_sd_mm = params.sd_inflation * std::sqrt(covariance(2, 2) + covariance(3, 3));
   return estimate;
 }

@@ -1,10 +1,9 @@
 // The reference method (circle templates in plane sections) and the profile-consistency refinement
 // against analytic walls of revolution with a known axis (tests/processing/axis_test_surfaces.h).
-#include "processing/axis/axis.h"
-
-#include "tests/processing/axis_test_surfaces.h"
-
 #include <gtest/gtest.h>
+
+#include "processing/axis/axis.h"
+#include "tests/processing/axis_test_surfaces.h"
 
 namespace sherd {
 namespace {
@@ -32,7 +31,9 @@ double offset_error_mm(const axis::AxisEstimate& a, const Truth& t) {
 WallOfRevolution cone_wall() {
   WallOfRevolution w;
   const double half_angle = 25.0 * M_PI / 180.0;
-  w.outer = [=](double s) { return Vec2(45.0 + 60.0 * s * std::sin(half_angle), 60.0 * s * std::cos(half_angle)); };
+  w.outer = [=](double s) {
+    return Vec2(45.0 + 60.0 * s * std::sin(half_angle), 60.0 * s * std::cos(half_angle));
+  };
   w.phi_begin_rad = 0.3;
   w.phi_end_rad = 0.3 + M_PI / 2;
   w.thickness_mm = 5.0;
@@ -84,7 +85,8 @@ WallOfRevolution cylinder_wall() {
 TEST(AxisReference, AutomaticFindsTheAxisOfACylinderWall) {
   Cloud cloud = testing::sample_wall(cylinder_wall());
   const Truth truth = place(cloud, testing::arbitrary_pose(63.0));
-  const auto a = axis::estimate_axis_reference(cloud, {.variant = axis::ReferenceVariant::Automatic});
+  const auto a =
+      axis::estimate_axis_reference(cloud, {.variant = axis::ReferenceVariant::Automatic});
   ASSERT_TRUE(a.found) << a.reason;
   EXPECT_LT(angle_error_deg(a, truth), 2.0);
   EXPECT_LT(offset_error_mm(a, truth), 3.0);
@@ -93,7 +95,8 @@ TEST(AxisReference, AutomaticFindsTheAxisOfACylinderWall) {
 TEST(AxisReference, SemiAutomaticNeedsTheSherdUprightWithin20Degrees) {
   Cloud cloud = testing::sample_wall(cylinder_wall());
   const Truth truth = place(cloud, testing::arbitrary_pose(15.0));
-  const auto a = axis::estimate_axis_reference(cloud, {.variant = axis::ReferenceVariant::SemiAutomatic});
+  const auto a =
+      axis::estimate_axis_reference(cloud, {.variant = axis::ReferenceVariant::SemiAutomatic});
   ASSERT_TRUE(a.found) << a.reason;
   EXPECT_LT(angle_error_deg(a, truth), 2.0);
   EXPECT_LT(offset_error_mm(a, truth), 3.0);
