@@ -245,7 +245,8 @@ SherdOutcome Pipeline::analyse_sherd(const std::string& scan_id, const segmentat
   std::filesystem::create_directories(out.dir);
 
   auto start = Clock::now();
-  const auto axis = axis::estimate_axis(part.mesh.vertices);
+  // Normal lines, then the profile-consistency refinement: the best method on bench_axis.
+  const auto axis = axis::estimate(part.mesh.vertices, axis::Method::Refined);
   record_stage(scan_id, "axis:" + part.id, ms_since(start),
                {{"found", axis.found}, {"method", axis.method}, {"angle_sd_deg", axis.angle_sd_deg},
                 {"offset_sd_mm", axis.offset_sd_mm}, {"inlier_share", axis.inlier_share},

@@ -2,19 +2,16 @@
 // With Plücker coordinates (n, p×n) of a normal line and (a, ā) of the axis, "meets" is the linear
 // condition a·(p×n) + ā·n = 0 (Pottmann & Wallner, Computational Line Geometry). Minimising the sum
 // of squares with |a| = 1 is a 6×6 quadratic form; ā is eliminated in closed form, leaving a 3×3
-// eigenproblem for a. That linear fit is the RANSAC hypothesis and the start of a Levenberg-Marquardt
-// refinement (Eigen) of the 4-DOF line against the line-to-line distances, each scaled by its
-// tolerance (see axis.h: a distance floor plus an angle times the point's distance to the axis),
-// so that a far point with a slightly tilted normal weighs no more than its normal deserves.
+// eigenproblem for a. That linear fit is the RANSAC hypothesis and the start of a
+// Levenberg-Marquardt refinement (Eigen) of the 4-DOF line against the line-to-line distances, each
+// scaled by its tolerance (see axis.h: a distance floor plus an angle times the point's distance to
+// the axis), so that a far point with a slightly tilted normal weighs no more than its normal
+// deserves.
 #include "processing/axis/axis.h"
 
-#include "core/errors.h"
-
-#include <Eigen/Eigenvalues>
-#include <unsupported/Eigen/NonLinearOptimization>
-#include <unsupported/Eigen/NumericalDiff>
 #include <fmt/format.h>
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -22,6 +19,10 @@
 #include <optional>
 #include <random>
 #include <unordered_map>
+#include <unsupported/Eigen/NonLinearOptimization>
+#include <unsupported/Eigen/NumericalDiff>
+
+#include "core/errors.h"
 
 namespace sherd::axis {
 namespace {
@@ -71,7 +72,8 @@ class RadiusGrid {
 
  private:
   std::array<std::int64_t, 3> cell_of(const Vec3d& p) const {
-    return {static_cast<std::int64_t>(std::floor(p.x() / cell_)), static_cast<std::int64_t>(std::floor(p.y() / cell_)),
+    return {static_cast<std::int64_t>(std::floor(p.x() / cell_)),
+            static_cast<std::int64_t>(std::floor(p.y() / cell_)),
             static_cast<std::int64_t>(std::floor(p.z() / cell_))};
   }
   static std::int64_t key(const std::array<std::int64_t, 3>& c) {
@@ -106,7 +108,8 @@ double median_spacing(const std::vector<Vec3d>& points, std::mt19937_64& rng, do
 // normals agree with its own (the opposite skin of the wall, ~180° away, is left out), oriented
 // like the input normal; nullopt where too few neighbours agree for a plane.
 std::optional<Vec3d> pca_normal(const std::vector<Vec3d>& points, const std::vector<Vec3d>& normals,
-                                const RadiusGrid& grid, std::uint32_t at, double radius, double min_cos) {
+                                const RadiusGrid& grid, std::uint32_t at, double radius,
+                                double min_cos) {
   constexpr int kMinNeighbours = 8;
   Vec3d sum = Vec3d::Zero();
   Eigen::Matrix3d sum_outer = Eigen::Matrix3d::Zero();
@@ -135,8 +138,8 @@ struct Tolerance {
 // Distance between a normal line and the axis, signed and divided by the line's tolerance, or
 // nullopt when they are too close to parallel for that distance to mean anything (see
 // Params::min_normal_axis_angle_deg). `distance_mm`, if given, receives the unscaled distance.
-std::optional<double> scaled_miss(const NormalLine& l, const Line& axis, double min_sin, const Tolerance& tol,
-                                  double* distance_mm = nullptr) {
+std::optional<double> scaled_miss(const NormalLine& l, const Line& axis, double min_sin,
+                                  const Tolerance& tol, double* distance_mm = nullptr) {
   const Vec3d common = axis.direction.cross(l.normal);
   const double sin_angle = common.norm();
   if (sin_angle < min_sin) return std::nullopt;
@@ -145,7 +148,8 @@ std::optional<double> scaled_miss(const NormalLine& l, const Line& axis, double 
   // Position along the normal line of its closest approach to the axis: the lever of the normal's
   // angular error.
   const double cos_angle = l.normal.dot(axis.direction);
-  const double along = (w.dot(axis.direction) * cos_angle - w.dot(l.normal)) / (sin_angle * sin_angle);
+  const double along =
+      (w.dot(axis.direction) * cos_angle - w.dot(l.normal)) / (sin_angle * sin_angle);
   if (distance_mm) *distance_mm = d;
   return d / (tol.floor_mm + std::abs(along) * tol.slope);
 }
@@ -308,8 +312,9 @@ AxisEstimate estimate_axis(const Cloud& sherd, const Params& params) {
   AxisEstimate estimate;
   estimate.method = "normal-line-complex+ransac+lm";
   if (!sherd.has_normals()) {
-    return not_found(estimate, "no normals: the axis is estimated from surface normals; "
-                               "compute normals before axis estimation");
+    return not_found(estimate,
+                     "no normals: the axis is estimated from surface normals; "
+                     "compute normals before axis estimation");
   }
   for (std::size_t i = 0; i < sherd.size(); ++i) {
     if (!sherd.points[i].allFinite() || !sherd.normals[i].allFinite()) {
@@ -347,7 +352,8 @@ AxisEstimate estimate_axis(const Cloud& sherd, const Params& params) {
   const double radius =
       params.normal_radius_mm > 0.0
           ? params.normal_radius_mm
-          : std::clamp(params.normal_radius_spacings * median_spacing(points, rng, kSpacingProbeMm), 1.0, 5.0);
+          : std::clamp(params.normal_radius_spacings * median_spacing(points, rng, kSpacingProbeMm),
+                       1.0, 5.0);
   const RadiusGrid grid(points, radius);
   const double min_cos = std::cos(params.normal_agreement_deg * kDegToRad);
   std::vector<NormalLine> lines;
@@ -361,10 +367,11 @@ AxisEstimate estimate_axis(const Cloud& sherd, const Params& params) {
     sum_sq_radius += lines.back().point.squaredNorm();
   }
   if (lines.size() < kMinLines) {
-    return not_found(estimate, fmt::format("not a surface: only {} points have enough neighbours "
-                                           "with agreeing normals within {:.1f} mm for a normal (at "
-                                           "least {} needed)",
-                                           lines.size(), radius, kMinLines));
+    return not_found(estimate,
+                     fmt::format("not a surface: only {} points have enough neighbours "
+                                 "with agreeing normals within {:.1f} mm for a normal (at "
+                                 "least {} needed)",
+                                 lines.size(), radius, kMinLines));
   }
   const double scale = std::max(std::sqrt(sum_sq_radius / lines.size()), 1e-6);
 
@@ -382,9 +389,11 @@ AxisEstimate estimate_axis(const Cloud& sherd, const Params& params) {
   }
 
   const double min_sin = std::sin(params.min_normal_axis_angle_deg * kDegToRad);
-  const Tolerance tolerance{params.inlier_distance_mm, std::tan(params.inlier_angle_deg * kDegToRad)};
+  const Tolerance tolerance{params.inlier_distance_mm,
+                            std::tan(params.inlier_angle_deg * kDegToRad)};
   constexpr std::size_t kSampleSize = 6;  // 5 lines fix a linear complex; one more for noise
-  std::uniform_int_distribution<std::uint32_t> pick(0, static_cast<std::uint32_t>(lines.size() - 1));
+  std::uniform_int_distribution<std::uint32_t> pick(0,
+                                                    static_cast<std::uint32_t>(lines.size() - 1));
   std::optional<Line> best;
   double best_cost = std::numeric_limits<double>::infinity();
   std::vector<std::uint32_t> sample(kSampleSize);
@@ -412,17 +421,17 @@ AxisEstimate estimate_axis(const Cloud& sherd, const Params& params) {
   }
   // The share among the lines that can meet the axis at all: the floor of a plate or the flat
   // underside of a base (normals along the axis) says nothing for or against it.
-  estimate.inlier_share =
-      static_cast<double>(scored.inliers.size()) / static_cast<double>(std::max<std::size_t>(scored.informative, 1));
+  estimate.inlier_share = static_cast<double>(scored.inliers.size()) /
+                          static_cast<double>(std::max<std::size_t>(scored.informative, 1));
   estimate.rms_mm = scored.rms;
   estimate.direction = axis.direction;
   // The axis point closest to the centroid: the centroid is the origin of the centred lines.
   estimate.point = centroid + axis.point - axis.point.dot(axis.direction) * axis.direction;
   if (estimate.inlier_share < params.min_inlier_share || scored.inliers.size() < kMinLines) {
-    return not_found(estimate, fmt::format("not rotational: only {:.0f}% of the normal lines meet "
-                                           "one axis (at least {:.0f}% needed)",
-                                           100.0 * estimate.inlier_share,
-                                           100.0 * params.min_inlier_share));
+    return not_found(estimate,
+                     fmt::format("not rotational: only {:.0f}% of the normal lines meet "
+                                 "one axis (at least {:.0f}% needed)",
+                                 100.0 * estimate.inlier_share, 100.0 * params.min_inlier_share));
   }
   // Normals that all meet in one point (a sphere) fit every line through it. On clean data both
   // residuals are near zero and their ratio is noise, hence the absolute floor.
@@ -451,12 +460,64 @@ AxisEstimate estimate_axis(const Cloud& sherd, const Params& params) {
     estimate.offset_sd_mm = std::sqrt(offset_sq / params.bootstrap_resamples);
   }
   if (estimate.angle_sd_deg > params.max_angle_sd_deg) {
-    return not_found(estimate, fmt::format("axis poorly constrained: direction varies by {:.1f} deg "
-                                           "(sd) under resampling (at most {:.1f} accepted)",
-                                           estimate.angle_sd_deg, params.max_angle_sd_deg));
+    return not_found(estimate,
+                     fmt::format("axis poorly constrained: direction varies by {:.1f} deg "
+                                 "(sd) under resampling (at most {:.1f} accepted)",
+                                 estimate.angle_sd_deg, params.max_angle_sd_deg));
   }
   estimate.found = true;
   return estimate;
+}
+
+namespace {
+struct MethodName {
+  Method method;
+  const char* name;
+};
+constexpr MethodName kMethods[] = {{Method::NormalLines, "normal-lines"},
+                                   {Method::ReferenceSemiAutomatic, "reference-semi"},
+                                   {Method::ReferenceAutomatic, "reference-auto"},
+                                   {Method::Refined, "refined"}};
+}  // namespace
+
+AxisEstimate estimate(const Cloud& sherd, Method method) {
+  switch (method) {
+    case Method::NormalLines:
+      return estimate_axis(sherd);
+    case Method::ReferenceSemiAutomatic:
+      return estimate_axis_reference(sherd, {.variant = ReferenceVariant::SemiAutomatic});
+    case Method::ReferenceAutomatic:
+      return estimate_axis_reference(sherd, {.variant = ReferenceVariant::Automatic});
+    case Method::Refined:
+      return refine_axis(sherd, estimate_axis(sherd));
+  }
+  return {};
+}
+
+const char* to_string(Method method) {
+  for (const auto& m : kMethods) {
+    if (m.method == method) return m.name;
+  }
+  return "?";
+}
+
+std::optional<Method> method_from_string(const std::string& name) {
+  for (const auto& m : kMethods) {
+    if (name == m.name) return m.method;
+  }
+  return std::nullopt;
+}
+
+std::vector<Method> all_methods() {
+  std::vector<Method> out;
+  for (const auto& m : kMethods) out.push_back(m.method);
+  return out;
+}
+
+std::string method_names() {
+  std::string out;
+  for (const auto& m : kMethods) out += (out.empty() ? "" : ", ") + std::string(m.name);
+  return out;
 }
 
 }  // namespace sherd::axis

@@ -1,0 +1,349 @@
+// Profile-consistency refinement of an axis. About the true axis every azimuth of a wheel-made
+// sherd shows the same profile: its points, mapped to (radius, height), lie on one thin curve per
+// skin. About a tilted or shifted axis the azimuths map to curves shifted against each other, and
+// the points spread. The spread is measured, point by point, as the distance of the point from the
+// line fitted (PCA) through its neighbours in the half-plane that come from other azimuths (a
+// neighbour at the same azimuth agrees about any axis). The neighbourhoods are fixed within a round
+// so that the cost is smooth in the 4 axis parameters; Levenberg-Marquardt (Eigen) minimises it
+// with Cauchy weights (iteratively reweighted: lips and breaks that wander are outliers), and the
+// next round re-finds neighbourhoods about the new axis, in a window scaled to the new spread.
+#include <fmt/format.h>
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <random>
+#include <unordered_map>
+#include <unsupported/Eigen/NonLinearOptimization>
+#include <unsupported/Eigen/NumericalDiff>
+
+#include "processing/axis/axis.h"
+
+namespace sherd::axis {
+namespace {
+
+constexpr double kDegToRad = M_PI / 180.0;
+using Vec2 = Eigen::Vector2d;
+
+struct Axis4 {
+  Vec3d point, direction;
+};
+
+Vec3d perpendicular_to(const Vec3d& v) {
+  const Vec3d helper = std::abs(v.x()) < 0.9 ? Vec3d::UnitX() : Vec3d::UnitY();
+  return v.cross(helper).normalized();
+}
+
+// A point in the half-plane of an axis: (r, h), azimuth, and its normal's (radial, axial) part.
+struct HalfPlanePoint {
+  Vec2 rh;
+  double phi;
+  Vec2 normal;  // not normalised: its length is the share of the normal within the half-plane
+};
+
+void to_half_plane(const std::vector<Vec3d>& points, const std::vector<Vec3d>& normals,
+                   const Axis4& axis, std::vector<HalfPlanePoint>& out) {
+  const Vec3d x = perpendicular_to(axis.direction), y = axis.direction.cross(x);
+  out.resize(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const Vec3d d = points[i] - axis.point;
+    const double px = d.dot(x), py = d.dot(y);
+    const double r = std::hypot(px, py);
+    const Vec3d radial = r > 1e-9 ? Vec3d((px * x + py * y) / r) : x;
+    out[i] = {{r, d.dot(axis.direction)},
+              std::atan2(py, px),
+              {normals[i].dot(radial), normals[i].dot(axis.direction)}};
+  }
+}
+
+// Distance of point i from the mean of its neighbours, along its own half-plane normal: the mean
+// of neighbours within a short window along the profile lies on the profile curve.
+double local_line_distance(const std::vector<HalfPlanePoint>& hp, std::uint32_t i,
+                           const std::vector<std::uint32_t>& neighbours) {
+  Vec2 mean = Vec2::Zero();
+  for (auto j : neighbours) mean += hp[j].rh;
+  mean /= static_cast<double>(neighbours.size());
+  return hp[i].normal.normalized().dot(hp[i].rh - mean);
+}
+
+struct Problem {
+  std::vector<Vec3d> points, normals;                  // centred on the sherd's centroid
+  std::vector<std::uint32_t> used;                     // points with a neighbourhood this round
+  std::vector<std::vector<std::uint32_t>> neighbours;  // per used point
+  std::vector<double> sqrt_face_weight;                // per used point: skin 1, fracture less
+  double cauchy_scale_mm = 1.0;
+};
+
+struct ConsistencyFunctor {
+  using Scalar = double;
+  using InputType = Eigen::VectorXd;
+  using ValueType = Eigen::VectorXd;
+  using JacobianType = Eigen::MatrixXd;
+  enum { InputsAtCompileTime = Eigen::Dynamic, ValuesAtCompileTime = Eigen::Dynamic };
+
+  const Problem* problem = nullptr;
+  Axis4 start;
+  Vec3d e1, e2;
+  mutable std::vector<HalfPlanePoint> hp;
+
+  int inputs() const { return 4; }
+  int values() const { return static_cast<int>(problem->used.size()); }
+  Axis4 axis_at(const Eigen::VectorXd& x) const {
+    return {start.point + x[2] * e1 + x[3] * e2,
+            (start.direction + x[0] * e1 + x[1] * e2).normalized()};
+  }
+  int operator()(const Eigen::VectorXd& x, Eigen::VectorXd& residuals) const {
+    to_half_plane(problem->points, problem->normals, axis_at(x), hp);
+    for (std::size_t k = 0; k < problem->used.size(); ++k) {
+      // Cauchy loss as a residual: its square is c² log(1 + (r/c)²), so that LM minimises the
+      // robust cost itself and the weights follow the axis within the round.
+      const double r = local_line_distance(hp, problem->used[k], problem->neighbours[k]);
+      const double c = problem->cauchy_scale_mm;
+      residuals[static_cast<Eigen::Index>(k)] =
+          problem->sqrt_face_weight[k] *
+          std::copysign(c * std::sqrt(std::log1p((r / c) * (r / c))), r);
+    }
+    return 0;
+  }
+};
+
+// Neighbourhoods in the half-plane about the current axis. For each point whose normal lies mostly
+// within the half-plane (a skin or a lip, not a side break): the points within `along_mm` of it
+// along its profile tangent and `across_mm` across, whose half-plane normals agree (the same skin)
+// and whose azimuth differs by at least `min_dphi` (another part of the sherd). The window is wide
+// across (several times the spread) and the neighbours are an evenly strided subset, not the
+// nearest: choosing the nearest across would choose those that agree with the current axis.
+void find_neighbourhoods(Problem& problem, const std::vector<HalfPlanePoint>& hp, double along_mm,
+                         double across_mm, double min_dphi, int max_neighbours) {
+  // A uniform grid over the half-plane, one window size per round (hand-written for the same
+  // reason as the normal-line method's grid).
+  const double cell = std::max(along_mm, across_mm);
+  auto key = [](std::int64_t cx, std::int64_t cy) { return (cx << 32) ^ (cy & 0xffffffff); };
+  auto cell_of = [cell](double v) { return static_cast<std::int64_t>(std::floor(v / cell)); };
+  std::unordered_map<std::int64_t, std::vector<std::uint32_t>> grid;
+  for (std::uint32_t i = 0; i < hp.size(); ++i)
+    grid[key(cell_of(hp[i].rh.x()), cell_of(hp[i].rh.y()))].push_back(i);
+  problem.used.clear();
+  problem.neighbours.clear();
+  std::vector<std::uint32_t> found;
+  for (std::uint32_t i = 0; i < hp.size(); ++i) {
+    if (hp[i].normal.norm() < 0.7) continue;
+    const Vec2 ni = hp[i].normal.normalized(), ti(-ni.y(), ni.x());
+    found.clear();
+    const auto cx = cell_of(hp[i].rh.x()), cy = cell_of(hp[i].rh.y());
+    for (std::int64_t dx = -1; dx <= 1; ++dx)
+      for (std::int64_t dy = -1; dy <= 1; ++dy) {
+        const auto it = grid.find(key(cx + dx, cy + dy));
+        if (it == grid.end()) continue;
+        for (auto j : it->second) {
+          const Vec2 d = hp[j].rh - hp[i].rh;
+          if (std::abs(d.dot(ti)) > along_mm || std::abs(d.dot(ni)) > across_mm) continue;
+          if (hp[j].normal.norm() < 0.7 || hp[j].normal.normalized().dot(ni) < 0.7) continue;
+          if (std::abs(std::remainder(hp[j].phi - hp[i].phi, 2 * M_PI)) < min_dphi) continue;
+          found.push_back(j);
+        }
+      }
+    constexpr std::size_t kMinNeighbours = 5;
+    if (found.size() < kMinNeighbours) continue;
+    const std::size_t stride = (found.size() + max_neighbours - 1) / max_neighbours;
+    std::vector<std::uint32_t> nb;
+    for (std::size_t k = 0; k < found.size(); k += stride) nb.push_back(found[k]);
+    problem.used.push_back(i);
+    problem.neighbours.push_back(std::move(nb));
+  }
+}
+
+// Whether each point is on a skin: it has a partner facing the other way straight through the wall
+// (along its -normal, within max_wall_mm, off the line by at most `tolerance_mm`). A fracture face
+// or a lip looks along the wall: its opposite face, if any, is the far end of the sherd.
+std::vector<bool> skin_points(const std::vector<HalfPlanePoint>& hp, double max_wall_mm,
+                              double tolerance_mm) {
+  constexpr double kCell = 2.0, kStep = 1.0;
+  auto key = [](std::int64_t cx, std::int64_t cy) { return (cx << 32) ^ (cy & 0xffffffff); };
+  auto cell_of = [](double v) { return static_cast<std::int64_t>(std::floor(v / kCell)); };
+  std::unordered_map<std::int64_t, std::vector<std::uint32_t>> grid;
+  for (std::uint32_t i = 0; i < hp.size(); ++i)
+    grid[key(cell_of(hp[i].rh.x()), cell_of(hp[i].rh.y()))].push_back(i);
+  std::vector<bool> skin(hp.size(), false);
+  for (std::uint32_t i = 0; i < hp.size(); ++i) {
+    if (hp[i].normal.norm() < 0.7) continue;
+    const Vec2 n = hp[i].normal.normalized();
+    std::int64_t last = std::numeric_limits<std::int64_t>::min();
+    for (double t = kStep; t <= max_wall_mm && !skin[i]; t += kStep) {
+      const Vec2 q = hp[i].rh - t * n;
+      const std::int64_t k = key(cell_of(q.x()), cell_of(q.y()));
+      if (k == last) continue;
+      last = k;
+      const auto it = grid.find(k);
+      if (it == grid.end()) continue;
+      for (auto j : it->second) {
+        const Vec2 d = hp[j].rh - hp[i].rh;
+        if (hp[j].normal.dot(n) > -0.7 * hp[j].normal.norm() || -d.dot(n) < 0.3) continue;
+        if (std::abs(d.x() * n.y() - d.y() * n.x()) <= tolerance_mm) {
+          skin[i] = true;
+          break;
+        }
+      }
+    }
+  }
+  return skin;
+}
+
+double median_of(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+  return v[v.size() / 2];
+}
+
+}  // namespace
+
+AxisEstimate refine_axis(const Cloud& sherd, const AxisEstimate& start,
+                         const RefineParams& params) {
+  if (!start.found) return start;
+  AxisEstimate estimate = start;
+  estimate.method = start.method + "+profile-consistency";
+
+  Problem problem;
+  std::vector<std::uint32_t> chosen(sherd.size());
+  std::iota(chosen.begin(), chosen.end(), 0u);
+  std::mt19937_64 rng(params.seed);
+  if (chosen.size() > params.max_points) {
+    std::shuffle(chosen.begin(), chosen.end(), rng);
+    chosen.resize(params.max_points);
+  }
+  Vec3d centroid = Vec3d::Zero();
+  for (auto i : chosen) centroid += sherd.points[i].cast<double>();
+  centroid /= static_cast<double>(chosen.size());
+  for (auto i : chosen) {
+    problem.points.push_back(sherd.points[i].cast<double>() - centroid);
+    problem.normals.push_back(sherd.normals[i].cast<double>().normalized());
+  }
+  const Vec3d start_direction = start.direction.normalized();
+  Axis4 axis{start.point - centroid, start_direction};
+  axis.point -= axis.point.dot(axis.direction) * axis.direction;
+
+  std::vector<HalfPlanePoint> hp;
+  Eigen::Matrix4d covariance = Eigen::Matrix4d::Zero();
+  double sigma_mm = 0.0;
+  double across_mm = params.first_across_mm;
+  for (int round = 0; round < params.rounds; ++round) {
+    to_half_plane(problem.points, problem.normals, axis, hp);
+    // The sherd's arc about the axis, from its circular mean (the azimuths may wrap at ±pi).
+    double sum_sin = 0.0, sum_cos = 0.0;
+    for (const auto& p : hp) sum_sin += std::sin(p.phi), sum_cos += std::cos(p.phi);
+    const double phi_mid = std::atan2(sum_sin, sum_cos);
+    double phi_lo = M_PI, phi_hi = -M_PI;
+    for (const auto& p : hp) {
+      const double a = std::remainder(p.phi - phi_mid, 2 * M_PI);
+      phi_lo = std::min(phi_lo, a);
+      phi_hi = std::max(phi_hi, a);
+    }
+    // Neighbours from at least 1/8 of the sherd's arc away.
+    find_neighbourhoods(problem, hp, params.along_mm, across_mm, (phi_hi - phi_lo) / 8.0,
+                        params.max_neighbours);
+    constexpr std::size_t kMinUsed = 100;
+    if (problem.used.size() < kMinUsed) {
+      estimate.method = start.method;  // nothing to refine with: the start stands
+      return estimate;
+    }
+    // Fracture faces and the lip count a tenth of a skin point.
+    const std::vector<bool> skin =
+        skin_points(hp, params.max_wall_mm, std::max(0.5, across_mm / 2));
+    problem.sqrt_face_weight.resize(problem.used.size());
+    for (std::size_t k = 0; k < problem.used.size(); ++k) {
+      problem.sqrt_face_weight[k] = skin[problem.used[k]] ? 1.0 : std::sqrt(params.fracture_weight);
+    }
+    // The Cauchy scale from the residuals about the current axis (MAD).
+    std::vector<double> absolute(problem.used.size());
+    for (std::size_t k = 0; k < problem.used.size(); ++k) {
+      absolute[k] = std::abs(local_line_distance(hp, problem.used[k], problem.neighbours[k]));
+    }
+    const double sigma = 1.4826 * median_of(absolute);
+    problem.cauchy_scale_mm = std::max(2.385 * sigma, 0.01);  // Cauchy's 95 % efficiency constant
+    // The next round's window across the profile: wide against the spread about this round's axis.
+    across_mm = std::max(params.min_across_mm, 6.0 * sigma);
+
+    ConsistencyFunctor functor;
+    functor.problem = &problem;
+    functor.start = axis;
+    functor.e1 = perpendicular_to(axis.direction);
+    functor.e2 = axis.direction.cross(functor.e1);
+    Eigen::NumericalDiff<ConsistencyFunctor> numeric(functor);
+    Eigen::LevenbergMarquardt<Eigen::NumericalDiff<ConsistencyFunctor>> solver(numeric);
+    solver.parameters.maxfev = 100;
+    Eigen::VectorXd x = Eigen::VectorXd::Zero(4);
+    solver.minimize(x);
+    if (!x.allFinite()) break;
+    axis = functor.axis_at(x);
+    axis.point -= axis.point.dot(axis.direction) * axis.direction;
+
+    if (round + 1 == params.rounds) {
+      // Covariance of the 4 parameters, Gauss-Newton: σ² (JᵀJ)⁻¹, at the solution; it sees the
+      // noise only. What it misses — a profile that is not quite one curve, a break that pulls —
+      // differs from one part of the sherd to another, so a jackknife over azimuth sectors is
+      // added: the fit again without each sector's residuals in turn.
+      Eigen::VectorXd fx(functor.values());
+      functor(x, fx);
+      Eigen::MatrixXd jacobian(functor.values(), 4);
+      numeric.df(x, jacobian);
+      const double dof = std::max(1, functor.values() - 4);
+      sigma_mm = std::sqrt(fx.squaredNorm() / dof);
+      covariance = sigma_mm * sigma_mm * (jacobian.transpose() * jacobian).inverse();
+      const int sectors = params.jackknife_sectors;
+      const std::vector<double> weights = problem.sqrt_face_weight;
+      std::vector<Eigen::VectorXd> replicas;
+      for (int sector = 0; sector < sectors; ++sector) {
+        int left_out = 0;
+        for (std::size_t k = 0; k < problem.used.size(); ++k) {
+          const double a = std::remainder(hp[problem.used[k]].phi - phi_mid, 2 * M_PI);
+          const int of = std::min(
+              sectors - 1, static_cast<int>((a - phi_lo) / (phi_hi - phi_lo + 1e-12) * sectors));
+          const bool out = of == sector;
+          problem.sqrt_face_weight[k] = out ? 0.0 : weights[k];
+          left_out += out;
+        }
+        if (left_out == 0) continue;
+        Eigen::LevenbergMarquardt<Eigen::NumericalDiff<ConsistencyFunctor>> again(numeric);
+        again.parameters.maxfev = 40;
+        Eigen::VectorXd y = x;
+        again.minimize(y);
+        if (y.allFinite()) replicas.push_back(y);
+      }
+      problem.sqrt_face_weight = weights;
+      if (replicas.size() >= 2) {
+        Eigen::VectorXd mean = Eigen::VectorXd::Zero(4);
+        for (const auto& y : replicas) mean += y;
+        mean /= static_cast<double>(replicas.size());
+        Eigen::Matrix4d spread = Eigen::Matrix4d::Zero();
+        for (const auto& y : replicas) spread += (y - mean) * (y - mean).transpose();
+        const double n = static_cast<double>(replicas.size());
+        covariance += (n - 1.0) / n * spread;
+      }
+    }
+  }
+
+  const double moved_deg =
+      std::acos(std::min(1.0, std::abs(axis.direction.dot(start_direction)))) / kDegToRad;
+  if (!(moved_deg <= params.max_move_deg) || !covariance.allFinite()) {
+    estimate.method = start.method;
+    estimate.reason = fmt::format(
+        "profile-consistency refinement diverged ({:.1f} deg from the start); the start stands",
+        moved_deg);
+    return estimate;
+  }
+  if (axis.direction.dot(start_direction) < 0.0) axis.direction = -axis.direction;
+  estimate.direction = axis.direction;
+  estimate.point = centroid + axis.point;
+  estimate.rms_mm = sigma_mm;
+  // Tilt parameters are tangents of the direction change: their sds are radians. The covariance
+  // treats the residuals as independent; sd_inflation accounts for what it misses (see
+  // RefineParams).
+  estimate.angle_sd_deg =
+      params.sd_inflation * std::sqrt(covariance(0, 0) + covariance(1, 1)) / kDegToRad;
+  estimate.offset_sd_mm = params.sd_inflation * std::sqrt(covariance(2, 2) + covariance(3, 3));
+  return estimate;
+}
+
+}  // namespace sherd::axis
