@@ -61,9 +61,8 @@ bool find_pose_corners(const std::vector<GreyImage>& frames, const CalibrationOp
   // decoded pixels in it.
   const int half = static_cast<int>(std::ceil(white.width / 180.0));
   for (std::size_t c = 0; c < corners.size(); ++c) {
-    const cv::Point3f board_point(
-        float(c % pattern.width * options.board.square_mm),
-        float(c / pattern.width * options.board.square_mm), 0.f);
+    const cv::Point3f board_point(float(c % pattern.width * options.board.square_mm),
+                                  float(c / pattern.width * options.board.square_mm), 0.f);
     pose.board.push_back(board_point);
     pose.camera.push_back(corners[c]);
     const int cx = static_cast<int>(std::lround(corners[c].x));
@@ -99,7 +98,8 @@ bool find_pose_corners(const std::vector<GreyImage>& frames, const CalibrationOp
 }  // namespace
 
 std::vector<Eigen::Vector2f> find_board_corners(const GreyImage& grey, const Chessboard& board) {
-  const cv::Mat image(grey.height, grey.width, CV_8U, const_cast<std::uint8_t*>(grey.pixels.data()));
+  const cv::Mat image(grey.height, grey.width, CV_8U,
+                      const_cast<std::uint8_t*>(grey.pixels.data()));
   std::vector<cv::Point2f> corners;
   if (!cv::findChessboardCorners(image, cv::Size(board.inner_columns, board.inner_rows), corners))
     return {};
@@ -148,10 +148,10 @@ CalibrationReport calibrate(const std::vector<std::filesystem::path>& capture_di
                                              projector_matrix, projector_distortion, rvecs, tvecs);
   // Intrinsics fixed, as the reference does: the stereo step only finds the pose between them.
   cv::Mat rotation, translation, essential, fundamental;
-  out.stereo_rms_px = cv::stereoCalibrate(
-      board_transferred, camera_transferred, projector, camera_matrix, camera_distortion,
-      projector_matrix, projector_distortion, camera_size, rotation, translation, essential,
-      fundamental, cv::CALIB_FIX_INTRINSIC);
+  out.stereo_rms_px =
+      cv::stereoCalibrate(board_transferred, camera_transferred, projector, camera_matrix,
+                          camera_distortion, projector_matrix, projector_distortion, camera_size,
+                          rotation, translation, essential, fundamental, cv::CALIB_FIX_INTRINSIC);
 
   out.camera = {camera_size.width, camera_size.height, to_eigen3(camera_matrix),
                 to_distortion(camera_distortion)};
@@ -171,17 +171,19 @@ ProCamCalibration read_calibration(const std::filesystem::path& file) {
                                  file.string(), e.what()));
   }
   if (!fs.isOpened())
-    throw InputError(fmt::format("scanner calibration {}: cannot open; run `sherdctl calibrate "
-                                 "scanner` or check the path in station.toml",
-                                 file.string()));
+    throw InputError(
+        fmt::format("scanner calibration {}: cannot open; run `sherdctl calibrate "
+                    "scanner` or check the path in station.toml",
+                    file.string()));
   auto matrix = [&](const char* name, const char* alternative = nullptr) {
     cv::Mat m;
     fs[name] >> m;
     if (m.empty() && alternative) fs[alternative] >> m;
     if (m.empty())
-      throw InputError(fmt::format("scanner calibration {}: no '{}' matrix; the file is "
-                                   "incomplete, run `sherdctl calibrate scanner` again",
-                                   file.string(), name));
+      throw InputError(
+          fmt::format("scanner calibration {}: no '{}' matrix; the file is "
+                      "incomplete, run `sherdctl calibrate scanner` again",
+                      file.string(), name));
     m.convertTo(m, CV_64F);
     return m;
   };
@@ -216,8 +218,7 @@ void write_calibration(const std::filesystem::path& file, const ProCamCalibratio
   if (!fs.isOpened())
     throw InputError(fmt::format("scanner calibration: cannot write {}", file.string()));
   fs << "img_shape" << cv::Mat((cv::Mat_<double>(2, 1) << c.camera.height, c.camera.width));
-  fs << "proj_shape"
-     << cv::Mat((cv::Mat_<double>(2, 1) << c.projector.height, c.projector.width));
+  fs << "proj_shape" << cv::Mat((cv::Mat_<double>(2, 1) << c.projector.height, c.projector.width));
   fs << "rms" << c.stereo_rms_px;
   fs << "cam_int" << to_cv(c.camera.matrix) << "cam_dist" << distortion_to_cv(c.camera.distortion);
   fs << "proj_int" << to_cv(c.projector.matrix) << "proj_dist"

@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include <Eigen/Eigenvalues>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <opencv2/calib3d.hpp>
@@ -35,6 +37,18 @@ std::vector<Eigen::Vector3f> pixel_rays(const Intrinsics& intrinsics,
   return rays;
 }
 
+// Inside the convex quadrilateral `quad` (either winding).
+bool inside(const std::array<Eigen::Vector2f, 4>& quad, float x, float y) {
+  int sign = 0;
+  for (int k = 0; k < 4; ++k) {
+    const Eigen::Vector2f a = quad[k], b = quad[(k + 1) % 4];
+    const int s = (b.x() - a.x()) * (y - a.y()) - (b.y() - a.y()) * (x - a.x()) > 0 ? 1 : -1;
+    if (sign == 0) sign = s;
+    if (s != sign) return false;
+  }
+  return true;
+}
+
 }  // namespace
 
 Triangulator::Triangulator(const ProCamCalibration& calibration) : calibration_(calibration) {
@@ -51,10 +65,10 @@ Triangulator::Triangulator(const ProCamCalibration& calibration) : calibration_(
 TriangulatedView Triangulator::triangulate(const DecodedMap& map, const GreyImage* white,
                                            int threads) const {
   if (map.width != calibration_.camera.width || map.height != calibration_.camera.height)
-    throw InputError(fmt::format("structured light: decoded map is {}x{}, the calibrated camera "
-                                 "is {}x{}; set the camera region to the calibrated one",
-                                 map.width, map.height, calibration_.camera.width,
-                                 calibration_.camera.height));
+    throw InputError(
+        fmt::format("structured light: decoded map is {}x{}, the calibrated camera "
+                    "is {}x{}; set the camera region to the calibrated one",
+                    map.width, map.height, calibration_.camera.width, calibration_.camera.height));
   const std::size_t cells = static_cast<std::size_t>(map.width) * map.height;
   TriangulatedView out;
   OrganisedView& view = out.view;
@@ -98,6 +112,62 @@ TriangulatedView Triangulator::triangulate(const DecodedMap& map, const GreyImag
       workers.emplace_back(run, cells * t / threads, cells * (t + 1) / threads);
     run(0, cells / threads);
   }
+  return out;
+}
+
+Eigen::Vector3d Triangulator::camera_ray(const Eigen::Vector2d& pixel) const {
+  cv::Mat matrix;
+  cv::eigen2cv(calibration_.camera.matrix, matrix);
+  const cv::Mat distortion(1, 5, CV_64F,
+                           const_cast<double*>(calibration_.camera.distortion.data()));
+  std::vector<cv::Point2d> in{{pixel.x(), pixel.y()}}, out;
+  cv::undistortPoints(in, out, matrix, distortion, cv::noArray(), cv::noArray(),
+                      cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 50, 1e-12));
+  return {out[0].x, out[0].y, 1.0};
+}
+
+BoardMeasurement measure_board(const Triangulator& triangulator, const TriangulatedView& view,
+                               const std::vector<Eigen::Vector2f>& corners,
+                               const Chessboard& board) {
+  const int n = board.inner_columns, m = board.inner_rows;
+  if (static_cast<int>(corners.size()) != n * m)
+    throw InputError(fmt::format("board check: {} corners given, the {}x{} board has {}",
+                                 corners.size(), n, m, n * m));
+  const std::array<Eigen::Vector2f, 4> quad{corners[0], corners[n - 1], corners[n * m - 1],
+                                            corners[n * (m - 1)]};
+  const OrganisedView& v = view.view;
+  BoardMeasurement out;
+  std::vector<Eigen::Vector3d> points;
+  for (int y = 0; y < v.height; ++y)
+    for (int x = 0; x < v.width; ++x) {
+      if (!inside(quad, float(x), float(y))) continue;
+      ++out.pixels;
+      const std::size_t i = static_cast<std::size_t>(y) * v.width + x;
+      if (v.valid[i]) points.push_back(v.points[i].cast<double>());
+    }
+  if (points.size() < 100)
+    throw ProcessingError(
+        fmt::format("board check: only {} points triangulated on the board; "
+                    "check the exposure and the decode thresholds",
+                    points.size()));
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  for (const auto& p : points) centroid += p;
+  centroid /= double(points.size());
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  for (const auto& p : points) scatter += (p - centroid) * (p - centroid).transpose();
+  const Eigen::Vector3d normal =
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(scatter).eigenvectors().col(0);
+  double squares = 0;
+  for (const auto& p : points) squares += std::pow((p - centroid).dot(normal), 2);
+  auto on_plane = [&](const Eigen::Vector2f& corner) {
+    const Eigen::Vector3d ray = triangulator.camera_ray(corner.cast<double>());
+    return Eigen::Vector3d(ray * (centroid.dot(normal) / ray.dot(normal)));
+  };
+  out.points = points.size();
+  out.plane_rms_mm = std::sqrt(squares / double(points.size()));
+  out.distance_mm = centroid.norm();
+  out.long_span_mm = (on_plane(quad[1]) - on_plane(quad[0])).norm();
+  out.short_span_mm = (on_plane(quad[3]) - on_plane(quad[0])).norm();
   return out;
 }
 
