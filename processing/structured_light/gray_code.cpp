@@ -23,7 +23,10 @@ std::uint32_t gray_to_binary(std::uint32_t gray) {
 }  // namespace
 
 GreyImage read_grey_image(const std::filesystem::path& file) {
-  const cv::Mat image = cv::imread(file.string(), cv::IMREAD_GRAYSCALE);
+  // Checked first: OpenCV would also print its own warning for a missing file.
+  const cv::Mat image = std::filesystem::is_regular_file(file)
+                            ? cv::imread(file.string(), cv::IMREAD_GRAYSCALE)
+                            : cv::Mat();
   if (image.empty())
     throw InputError(
         fmt::format("structured light: cannot read image {} (missing or not an "
