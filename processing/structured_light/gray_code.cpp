@@ -97,7 +97,9 @@ DecodedMap decode(const GrayCodePatterns& patterns, std::span<const GreyImage> f
                       i, frames[i].width, frames[i].height, width, height));
 
   const std::size_t cells = static_cast<std::size_t>(width) * height;
-  DecodedMap map{width, height, {}, {}, {}};
+  DecodedMap map;
+  map.width = width;
+  map.height = height;
   map.column.assign(cells, -1);
   map.row.assign(cells, -1);
   map.state.assign(cells, PixelState::kShadow);

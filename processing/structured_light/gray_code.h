@@ -53,6 +53,8 @@ struct DecodedMap {
   int width = 0, height = 0;
   std::vector<std::int32_t> column, row;
   std::vector<PixelState> state;
+  // Sub-pixel projector columns where phase shifting refined them (refine_columns), else empty.
+  std::vector<float> column_fine;
 
   std::size_t decoded_count() const;
   bool decoded(int x, int y) const {

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <limits>
@@ -81,14 +82,12 @@ TriangulatedView Triangulator::triangulate(const DecodedMap& map, const GreyImag
   out.ray_gap_mm.assign(cells, nan);
 
   const Eigen::Vector3f c = projector_centre_.cast<float>();
-  const int projector_width = calibration_.projector.width;
   auto run = [&](std::size_t begin, std::size_t end) {
     for (std::size_t i = begin; i < end; ++i) {
       if (map.state[i] != PixelState::kDecoded) continue;
       // Closest points of the rays s·u (camera, from the origin) and c + t·v (projector).
       const Eigen::Vector3f& u = camera_rays_[i];
-      const Eigen::Vector3f& v =
-          projector_rays_[static_cast<std::size_t>(map.row[i]) * projector_width + map.column[i]];
+      const Eigen::Vector3f v = projector_ray(map, i);
       const float uu = u.dot(u), uv = u.dot(v), vv = v.dot(v), uc = u.dot(c), vc = v.dot(c);
       const float det = uu * vv - uv * uv;
       if (std::abs(det) < 1e-12f * uu * vv) continue;  // parallel rays: no depth
@@ -113,6 +112,17 @@ TriangulatedView Triangulator::triangulate(const DecodedMap& map, const GreyImag
     run(0, cells / threads);
   }
   return out;
+}
+
+Eigen::Vector3f Triangulator::projector_ray(const DecodedMap& map, std::size_t i) const {
+  const int width = calibration_.projector.width;
+  const std::size_t row_start = static_cast<std::size_t>(map.row[i]) * width;
+  if (map.column_fine.empty()) return projector_rays_[row_start + map.column[i]];
+  // Sub-pixel column: linear between the rays of its two neighbouring projector pixels.
+  const float x = std::clamp(map.column_fine[i], 0.f, float(width - 1));
+  const int left = std::min(static_cast<int>(x), width - 2);
+  const float w = x - float(left);
+  return (1 - w) * projector_rays_[row_start + left] + w * projector_rays_[row_start + left + 1];
 }
 
 Eigen::Vector3d Triangulator::camera_ray(const Eigen::Vector2d& pixel) const {

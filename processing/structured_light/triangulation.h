@@ -29,6 +29,9 @@ class Triangulator {
   Eigen::Vector3d camera_ray(const Eigen::Vector2d& pixel) const;
 
  private:
+  // The ray of decoded pixel i's projector position (sub-pixel where map.column_fine is set).
+  Eigen::Vector3f projector_ray(const DecodedMap& map, std::size_t i) const;
+
   ProCamCalibration calibration_;
   Eigen::Vector3d projector_centre_;  // in the camera frame
   // Unit-free ray directions (x, y, 1) per camera pixel (camera frame) and per projector pixel
