@@ -75,6 +75,26 @@ TEST_F(FakeGigECamera, TriggeredFramesCarryExactlyTheFilledImage) {
   EXPECT_EQ(camera.incomplete_frames(), 0);
 }
 
+// The camera goes away mid-scan (cable pulled): the next capture fails with a DeviceError naming
+// the camera, never a stale frame.
+TEST_F(FakeGigECamera, ACameraThatGoesAwayFailsTheCaptureCleanly) {
+  AravisCameraSettings settings;
+  settings.id = "127.0.0.1";
+  settings.width = 64;
+  settings.height = 48;
+  settings.timeout_ms = 500;
+  AravisCamera camera(settings);
+  EXPECT_EQ(camera.capture().pixels.size(), 64u * 48u);
+  g_object_unref(fake_);
+  fake_ = nullptr;
+  try {
+    camera.capture();
+    FAIL() << "a frame from a camera that is gone";
+  } catch (const sherd::DeviceError& e) {
+    EXPECT_NE(std::string(e.what()).find("SHERD0"), std::string::npos) << e.what();
+  }
+}
+
 TEST_F(FakeGigECamera, AnUnknownCameraIsAClearDeviceError) {
   AravisCameraSettings settings;
   settings.id = "Nobody-NoModel-000";
