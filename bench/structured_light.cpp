@@ -5,6 +5,9 @@
 //   {"bench":"structured_light","case":"board_geometry",...}     triangulated board vs 75 mm
 //   squares
 //   {"bench":"structured_light","case":"speed",...}              decode + triangulate, 1280×1024×42
+//   {"bench":"structured_light","case":"aravis_acquisition",...} frames/s at 1280×1024 through
+//        Aravis's simulated GigE camera (127.0.0.1) filming the simulated projector, beside the
+//        same camera with Aravis's own fill (baseline)
 // Usage: bench_structured_light [SHARED_DATA_DIR] (default ../shared/data beside the repository).
 #include <nlohmann/json.hpp>
 
@@ -15,7 +18,11 @@
 #include <filesystem>
 #include <iostream>
 
+#include <arv.h>
+
 #include "bench/bench_stats.h"
+#include "drivers/aravis_camera.h"
+#include "drivers/projector.h"
 #include "processing/structured_light/calibration.h"
 #include "processing/structured_light/gray_code.h"
 #include "processing/structured_light/triangulation.h"
@@ -40,6 +47,55 @@ json calibration_json(const sl::ProCamCalibration& c) {
           {"rotation_deg", r.angle() * 180 / M_PI},
           {"translation_mm", {c.translation_mm.x(), c.translation_mm.y(), c.translation_mm.z()}},
           {"stereo_rms_px", c.stereo_rms_px}};
+}
+
+// The fake camera films the simulated projector (camera pixel (u, v) sees projector pixel
+// (u·0.8, v·0.75): 1280×1024 over 1024×768).
+void film_projector(ArvBuffer* buffer, void* data, guint32, guint32, ArvPixelFormat) {
+  const auto* projector = static_cast<const sherd::drivers::SimulatedProjector*>(data);
+  auto* pixels =
+      static_cast<std::uint8_t*>(const_cast<void*>(arv_buffer_get_data(buffer, nullptr)));
+  const int width = arv_buffer_get_image_width(buffer),
+            height = arv_buffer_get_image_height(buffer);
+  for (int v = 0; v < height; ++v)
+    for (int u = 0; u < width; ++u)
+      pixels[std::size_t(v) * width + u] = projector->lit(u * 4 / 5, v * 3 / 4);
+}
+
+// Frames/s of `frames` triggered captures at 1280×1024; `projector` null = Aravis's own fill.
+json acquisition(sherd::drivers::SimulatedProjector* projector,
+                 const sl::GrayCodePatterns& patterns) {
+  ArvGvFakeCamera* fake = arv_gv_fake_camera_new("127.0.0.1", "SHERDBENCH");
+  if (!arv_gv_fake_camera_is_running(fake)) {
+    g_object_unref(fake);
+    return {{"error", "cannot bind 127.0.0.1:3956"}};
+  }
+  if (projector)
+    arv_fake_camera_set_fill_pattern(arv_gv_fake_camera_get_fake_camera(fake), film_projector,
+                                     projector);
+  json out;
+  {
+    sherd::drivers::AravisCameraSettings settings;
+    settings.id = "127.0.0.1";
+    settings.width = 1280;
+    settings.height = 1024;
+    sherd::drivers::AravisCamera camera(settings);
+    std::vector<sl::GreyImage> shown;
+    for (int f = 0; f < patterns.frame_count(); ++f) shown.push_back(patterns.frame(f));
+    const auto t0 = std::chrono::steady_clock::now();
+    for (int f = 0; f < patterns.frame_count(); ++f) {
+      if (projector) projector->show(shown[f].pixels);
+      camera.capture();
+    }
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    out = {{"frames", patterns.frame_count()},
+           {"seconds", seconds},
+           {"frames_per_s", patterns.frame_count() / seconds},
+           {"incomplete_frames", camera.incomplete_frames()}};
+  }
+  g_object_unref(fake);
+  return out;
 }
 
 }  // namespace
@@ -129,4 +185,16 @@ int main(int argc, char** argv) {
                      .dump()
               << "\n";
   }
+
+  sherd::drivers::SimulatedProjector projector(patterns.projector_width, patterns.projector_height);
+  std::cout << json{{"bench", "structured_light"},
+                    {"case", "aravis_acquisition"},
+                    {"width", 1280},
+                    {"height", 1024},
+                    {"filming_projector", acquisition(&projector, patterns)},
+                    {"baseline_aravis_fill", acquisition(nullptr, patterns)},
+                    {"note", "loopback; shared 2-core machine under other builds"}}
+                   .dump()
+            << "\n";
+  arv_shutdown();
 }
