@@ -136,7 +136,7 @@ int cmd_calibrate(const Options& options, const std::string& kind) {
 // in the station's database.
 struct ScannerCalibrationArgs {
   std::vector<std::string> captures;
-  std::string out, reference;
+  std::string out, reference, data_dir;
   int projector_width = 1024, projector_height = 768;
   int board_columns = 9, board_rows = 7;
   double square_mm = 75;
@@ -159,7 +159,8 @@ json calibration_json(const sherd::structured_light::ProCamCalibration& c) {
 
 int cmd_calibrate_scanner(const Options& options, const ScannerCalibrationArgs& args) {
   namespace sl = sherd::structured_light;
-  const auto config = sherd::config::load_station_config(options.config_file);
+  auto config = sherd::config::load_station_config(options.config_file);
+  if (!args.data_dir.empty()) sherd::config::set_data_dir(config, args.data_dir);
   sl::CalibrationOptions calibration_options;
   calibration_options.patterns = {args.projector_width, args.projector_height};
   calibration_options.thresholds = {args.black_threshold, args.white_threshold};
@@ -373,6 +374,8 @@ int main(int argc, char** argv) {
       ->check(CLI::ExistingDirectory);
   calibrate->add_option("--out", scanner_args.out, "scanner: calibration file to write (default "
                                                    "DATA_DIR/calibration/scanner.xml)");
+  calibrate->add_option("--data-dir", scanner_args.data_dir,
+                        "scanner: override station.data_dir (the database and default --out)");
   calibrate->add_option("--reference", scanner_args.reference,
                         "scanner: a calibration file (OpenCV XML) to print beside ours")
       ->check(CLI::ExistingFile);
