@@ -46,7 +46,14 @@ struct DecodeThresholds {
   int white = 5;   // |pattern − inverse| must reach this for every bit, or the pixel is ambiguous
 };
 
-enum class PixelState : std::uint8_t { kDecoded = 0, kShadow, kLowContrast, kOutOfRange };
+// kSaturated: a phase-shift frame clipped at the sensor's top (set by refine_columns).
+enum class PixelState : std::uint8_t {
+  kDecoded = 0,
+  kShadow,
+  kLowContrast,
+  kOutOfRange,
+  kSaturated
+};
 
 // Per camera pixel: the projector column and row that lit it (valid where state is kDecoded).
 struct DecodedMap {

@@ -29,7 +29,7 @@ GreyImage PhaseShiftPatterns::frame(int k) const {
 }
 
 void refine_columns(const PhaseShiftPatterns& patterns, std::span<const GreyImage> frames,
-                    double min_modulation, DecodedMap& map) {
+                    double min_modulation, DecodedMap& map, int saturation) {
   if (static_cast<int>(frames.size()) != patterns.steps)
     throw InputError(fmt::format("phase shift: {} frames given, the pattern set has {}",
                                  frames.size(), patterns.steps));
@@ -49,9 +49,15 @@ void refine_columns(const PhaseShiftPatterns& patterns, std::span<const GreyImag
     if (map.state[i] != PixelState::kDecoded) continue;
     // I_k = A + B·cos(θ + δ_k)  ⇒  Σ I_k cos δ_k = (N/2)·B·cos θ, Σ I_k sin δ_k = −(N/2)·B·sin θ.
     double c = 0, s = 0;
+    bool clipped = false;
     for (int k = 0; k < patterns.steps; ++k) {
       c += frames[k].pixels[i] * cosines[k];
       s += frames[k].pixels[i] * sines[k];
+      clipped |= frames[k].pixels[i] >= saturation;
+    }
+    if (clipped) {
+      map.state[i] = PixelState::kSaturated;
+      continue;
     }
     if (2.0 / patterns.steps * std::hypot(c, s) < min_modulation) {
       map.state[i] = PixelState::kLowContrast;

@@ -22,8 +22,9 @@ struct PhaseShiftPatterns {
 
 // Refines `map` in place: sets map.column_fine for decoded pixels whose fringe modulation (the
 // sinusoid's amplitude, grey levels) reaches `min_modulation`; other decoded pixels become
-// kLowContrast. Throws InputError when the frame count or sizes do not match.
+// kLowContrast, and those with a fringe frame at or above `saturation` kSaturated (a clipped
+// sinusoid shifts the phase). Throws InputError when the frame count or sizes do not match.
 void refine_columns(const PhaseShiftPatterns& patterns, std::span<const GreyImage> frames,
-                    double min_modulation, DecodedMap& map);
+                    double min_modulation, DecodedMap& map, int saturation = 255);
 
 }  // namespace sherd::structured_light

@@ -2,6 +2,7 @@
 // at known (fractional) projector columns must decode to those columns.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "processing/structured_light/phase_shift.h"
@@ -44,7 +45,7 @@ TEST(PhaseShift, ProjectorPixelsDecodeToTheirOwnColumns) {
   const sl::PhaseShiftPatterns fringes{1024, 768, 16, 4};
   const SyntheticCapture c = capture(gray, fringes, 1024, 0.0, 1.0);
   sl::DecodedMap map = sl::decode(gray, c.gray, {});
-  sl::refine_columns(fringes, c.fringes, 10, map);
+  sl::refine_columns(fringes, c.fringes, 10, map, 256);  // fringes peak at 255: no clipping here
   ASSERT_EQ(map.decoded_count(), 1024u);
   for (int x = 0; x < 1024; ++x) EXPECT_NEAR(map.column_fine[x], x, 0.05) << x;
 }
@@ -58,13 +59,35 @@ TEST(PhaseShift, FractionalColumnsDecodeToSubPixelAccuracy) {
     const double x0 = 3.3, scale = 0.731;
     const SyntheticCapture c = capture(gray, fringes, 1300, x0, scale);
     sl::DecodedMap map = sl::decode(gray, c.gray, {});
-    sl::refine_columns(fringes, c.fringes, 10, map);
+    sl::refine_columns(fringes, c.fringes, 10, map, 256);
     ASSERT_EQ(map.decoded_count(), 1300u) << steps;
     double worst = 0;
     for (int u = 0; u < 1300; ++u)
       worst = std::max(worst, std::abs(map.column_fine[u] - (x0 + scale * u)));
     EXPECT_LT(worst, 0.05) << steps << " steps";
   }
+}
+
+// The synthetic fringes span 0..255, so their peaks reach 255: with the default saturation level
+// (255) exactly the pixels whose sinusoid rounds to 255 in some frame are masked; with 256 none.
+TEST(PhaseShift, ClippedFringesAreMaskedAsSaturated) {
+  const sl::GrayCodePatterns gray{1024, 768};
+  const sl::PhaseShiftPatterns fringes{1024, 768, 16, 4};
+  const SyntheticCapture c = capture(gray, fringes, 1024, 0.0, 1.0);
+  std::size_t peaks = 0;  // truth: pixels with a 255 in some fringe frame
+  for (int x = 0; x < 1024; ++x) {
+    bool peak = false;
+    for (const auto& f : c.fringes) peak |= f.pixels[x] == 255;
+    peaks += peak;
+  }
+  ASSERT_GT(peaks, 0u);
+  sl::DecodedMap map = sl::decode(gray, c.gray, {});
+  sl::refine_columns(fringes, c.fringes, 10, map);
+  EXPECT_EQ(std::count(map.state.begin(), map.state.end(), sl::PixelState::kSaturated),
+            static_cast<std::ptrdiff_t>(peaks));
+  sl::DecodedMap unclipped = sl::decode(gray, c.gray, {});
+  sl::refine_columns(fringes, c.fringes, 10, unclipped, 256);
+  EXPECT_EQ(unclipped.decoded_count(), 1024u);
 }
 
 TEST(PhaseShift, FlatLightIsLowModulationNotAColumn) {
