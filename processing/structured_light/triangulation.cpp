@@ -81,22 +81,23 @@ TriangulatedView Triangulator::triangulate(const DecodedMap& map, const GreyImag
   if (white) view.colours.assign(cells, Rgb8{});
   out.ray_gap_mm.assign(cells, nan);
 
-  const Eigen::Vector3f c = projector_centre_.cast<float>();
+  const Eigen::Vector3d c = projector_centre_;
   auto run = [&](std::size_t begin, std::size_t end) {
     for (std::size_t i = begin; i < end; ++i) {
       if (map.state[i] != PixelState::kDecoded) continue;
       // Closest points of the rays s·u (camera, from the origin) and c + t·v (projector).
-      const Eigen::Vector3f& u = camera_rays_[i];
-      const Eigen::Vector3f v = projector_ray(map, i);
-      const float uu = u.dot(u), uv = u.dot(v), vv = v.dot(v), uc = u.dot(c), vc = v.dot(c);
-      const float det = uu * vv - uv * uv;
-      if (std::abs(det) < 1e-12f * uu * vv) continue;  // parallel rays: no depth
-      const float s = (uc * vv - uv * vc) / det;
-      const float t = (uv * uc - uu * vc) / det;
+      // In double: the rays meet at a small angle, so uu·vv − uv² cancels most of its digits.
+      const Eigen::Vector3d u = camera_rays_[i].cast<double>();
+      const Eigen::Vector3d v = projector_ray(map, i).cast<double>();
+      const double uu = u.dot(u), uv = u.dot(v), vv = v.dot(v), uc = u.dot(c), vc = v.dot(c);
+      const double det = uu * vv - uv * uv;
+      if (std::abs(det) < 1e-12 * uu * vv) continue;  // parallel rays: no depth
+      const double s = (uc * vv - uv * vc) / det;
+      const double t = (uv * uc - uu * vc) / det;
       if (s <= 0 || t <= 0) continue;  // behind the camera or the projector
-      const Eigen::Vector3f on_camera = s * u, on_projector = c + t * v;
-      view.points[i] = 0.5f * (on_camera + on_projector);
-      out.ray_gap_mm[i] = (on_camera - on_projector).norm();
+      const Eigen::Vector3d on_camera = s * u, on_projector = c + t * v;
+      view.points[i] = (0.5 * (on_camera + on_projector)).cast<float>();
+      out.ray_gap_mm[i] = static_cast<float>((on_camera - on_projector).norm());
       view.valid[i] = 1;
       if (white) {
         const std::uint8_t g = white->pixels[i];
