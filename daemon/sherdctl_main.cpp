@@ -361,8 +361,9 @@ int main(int argc, char** argv) {
   show->add_option("SCAN_ID", scan_id, "the scan's id (see `sherdctl jobs`)")->required();
   show->add_flag("--wait", wait, "wait until the scan has finished first");
   std::string calibration_kind;
-  auto* calibrate = app.add_subcommand("calibrate", "run a calibration procedure through sherdd; results are "
-                                                     "stored in a file and the database and used at once");
+  auto* calibrate = app.add_subcommand("calibrate", "run a calibration procedure: turntable through sherdd (stored in a "
+                                                     "file and the database, used at once); scanner from --captures, "
+                                                     "here (stored in a file and the database)");
   calibrate->add_option("KIND", calibration_kind, "turntable (the axis, from a scan of the calibration object) "
                                                    "or scanner (camera + projector, from --captures)")
       ->required()
@@ -379,15 +380,18 @@ int main(int argc, char** argv) {
   calibrate->add_option("--reference", scanner_args.reference,
                         "scanner: a calibration file (OpenCV XML) to print beside ours")
       ->check(CLI::ExistingFile);
-  calibrate->add_option("--projector-width", scanner_args.projector_width)->capture_default_str();
-  calibrate->add_option("--projector-height", scanner_args.projector_height)->capture_default_str();
+  calibrate->add_option("--projector-width", scanner_args.projector_width, "scanner: projector pixels")
+      ->capture_default_str();
+  calibrate->add_option("--projector-height", scanner_args.projector_height, "scanner: projector pixels")
+      ->capture_default_str();
   calibrate->add_option("--board-columns", scanner_args.board_columns,
                         "inner corners along the board's long side")->capture_default_str();
   calibrate->add_option("--board-rows", scanner_args.board_rows,
                         "inner corners along the board's short side")->capture_default_str();
-  calibrate->add_option("--square-mm", scanner_args.square_mm)->capture_default_str();
+  calibrate->add_option("--square-mm", scanner_args.square_mm, "scanner: chessboard square side")
+      ->capture_default_str();
   calibrate->add_option("--black-thr", scanner_args.black_threshold,
-                        "white − black below this is shadow (grey levels)")->capture_default_str();
+                        "white − black at or below this is shadow (grey levels)")->capture_default_str();
   calibrate->add_option("--white-thr", scanner_args.white_threshold,
                         "|pattern − inverse| below this is ambiguous (grey levels)")->capture_default_str();
   std::vector<std::string> files;
