@@ -33,8 +33,9 @@ bool finished(db::ScanState state) { return state == db::ScanState::Done || stat
 
 std::string calibration_refusal(const std::string& kind) {
   if (kind == "scanner") {
-    return "scanner calibration is not available yet (it comes with the structured-light scanner "
-           "driver): only `sherdctl calibrate turntable` can be run";
+    return "scanner calibration through sherdd is not available yet (it needs the structured-light "
+           "scanner driver): calibrate from captures with `sherdctl calibrate scanner --captures "
+           "DIR…`";
   }
   return fmt::format("unknown calibration \"{}\": use `sherdctl calibrate turntable`", kind);
 }

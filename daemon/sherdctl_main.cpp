@@ -9,6 +9,7 @@
 #include "db/event_sink.h"
 #include "db/store.h"
 #include "processing/io/model_io.h"
+#include "processing/structured_light/calibration.h"
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
@@ -16,6 +17,7 @@
 #include <spdlog/spdlog.h>
 
 #include <cstdlib>
+#include <optional>
 #include <functional>
 #include <iostream>
 
@@ -127,6 +129,92 @@ int cmd_calibrate(const Options& options, const std::string& kind) {
         c.value("spheres_used", 0), c.value("centres_used", 0), c.value("centres_rejected", 0),
         c.value("file", ""));
   });
+}
+
+// Scanner (camera + projector) calibration from capture folders of a chessboard under the
+// Gray-code sequence; runs here, without sherdd. Writes the calibration file and records the result
+// in the station's database.
+struct ScannerCalibrationArgs {
+  std::vector<std::string> captures;
+  std::string out, reference, data_dir;
+  int projector_width = 1024, projector_height = 768;
+  int board_columns = 9, board_rows = 7;
+  double square_mm = 75;
+  int black_threshold = 40, white_threshold = 5;
+};
+
+json intrinsics_json(const sherd::structured_light::Intrinsics& in) {
+  return {{"fx", in.matrix(0, 0)}, {"fy", in.matrix(1, 1)}, {"cx", in.matrix(0, 2)},
+          {"cy", in.matrix(1, 2)}, {"distortion", in.distortion}};
+}
+
+json calibration_json(const sherd::structured_light::ProCamCalibration& c) {
+  const Eigen::Vector3d t = c.translation_mm;
+  return {{"camera", intrinsics_json(c.camera)},
+          {"projector", intrinsics_json(c.projector)},
+          {"rotation_deg", Eigen::AngleAxisd(c.rotation).angle() * 180 / M_PI},
+          {"translation_mm", {t.x(), t.y(), t.z()}},
+          {"stereo_rms_px", c.stereo_rms_px}};
+}
+
+int cmd_calibrate_scanner(const Options& options, const ScannerCalibrationArgs& args) {
+  namespace sl = sherd::structured_light;
+  auto config = sherd::config::load_station_config(options.config_file);
+  if (!args.data_dir.empty()) sherd::config::set_data_dir(config, args.data_dir);
+  sl::CalibrationOptions calibration_options;
+  calibration_options.patterns = {args.projector_width, args.projector_height};
+  calibration_options.thresholds = {args.black_threshold, args.white_threshold};
+  calibration_options.board = {args.board_columns, args.board_rows, args.square_mm};
+  std::vector<std::filesystem::path> dirs(args.captures.begin(), args.captures.end());
+  const sl::CalibrationReport report = sl::calibrate(dirs, calibration_options);
+  const std::filesystem::path out =
+      args.out.empty() ? config.paths.data_dir / "calibration" / "scanner.xml"
+                       : std::filesystem::path(args.out);
+  if (out.has_parent_path()) std::filesystem::create_directories(out.parent_path());
+  sl::write_calibration(out, report.calibration);
+  json result = calibration_json(report.calibration);
+  result["file"] = out.string();
+  result["poses_used"] = report.poses_used;
+  result["projector_corners"] = report.projector_corners;
+  result["camera_rms_px"] = report.calibration.camera_rms_px;
+  result["projector_rms_px"] = report.calibration.projector_rms_px;
+  std::optional<sl::ProCamCalibration> reference;
+  if (!args.reference.empty()) {
+    reference = sl::read_calibration(args.reference);
+    result["reference"] = calibration_json(*reference);
+  }
+  std::filesystem::create_directories(config.paths.database.parent_path());
+  sherd::db::Store(config.paths.database).add_calibration("scanner", "", result);
+  if (options.as_json) {
+    std::cout << result.dump(2) << '\n';
+    return 0;
+  }
+  const sl::ProCamCalibration& c = report.calibration;
+  auto row = [&](const char* name, auto&& value) {
+    std::cout << fmt::format("  {:<22}{:>14.4f}", name, value(c));
+    if (reference) std::cout << fmt::format("{:>14.4f}", value(*reference));
+    std::cout << '\n';
+  };
+  std::cout << fmt::format("scanner calibration from {} poses ({} projector corners)\n",
+                           report.poses_used, report.projector_corners);
+  std::cout << fmt::format("  {:<22}{:>14}{}\n", "", "ours",
+                           reference ? fmt::format("{:>14}", "reference") : "");
+  using P = const sl::ProCamCalibration&;
+  row("camera fx, px", [](P p) { return p.camera.matrix(0, 0); });
+  row("camera fy, px", [](P p) { return p.camera.matrix(1, 1); });
+  row("camera cx, px", [](P p) { return p.camera.matrix(0, 2); });
+  row("camera cy, px", [](P p) { return p.camera.matrix(1, 2); });
+  row("projector fx, px", [](P p) { return p.projector.matrix(0, 0); });
+  row("projector fy, px", [](P p) { return p.projector.matrix(1, 1); });
+  row("projector cx, px", [](P p) { return p.projector.matrix(0, 2); });
+  row("projector cy, px", [](P p) { return p.projector.matrix(1, 2); });
+  row("rotation, deg", [](P p) { return Eigen::AngleAxisd(p.rotation).angle() * 180 / M_PI; });
+  row("translation x, mm", [](P p) { return p.translation_mm.x(); });
+  row("translation y, mm", [](P p) { return p.translation_mm.y(); });
+  row("translation z, mm", [](P p) { return p.translation_mm.z(); });
+  row("stereo RMS, px", [](P p) { return p.stereo_rms_px; });
+  std::cout << fmt::format("  saved to {}\n", out.string());
+  return 0;
 }
 
 int cmd_status(const Options& options) {
@@ -273,12 +361,39 @@ int main(int argc, char** argv) {
   show->add_option("SCAN_ID", scan_id, "the scan's id (see `sherdctl jobs`)")->required();
   show->add_flag("--wait", wait, "wait until the scan has finished first");
   std::string calibration_kind;
-  auto* calibrate = app.add_subcommand("calibrate", "run a calibration procedure through sherdd; results are "
-                                                     "stored in a file and the database and used at once");
+  auto* calibrate = app.add_subcommand("calibrate", "run a calibration procedure: turntable through sherdd (stored in a "
+                                                     "file and the database, used at once); scanner from --captures, "
+                                                     "here (stored in a file and the database)");
   calibrate->add_option("KIND", calibration_kind, "turntable (the axis, from a scan of the calibration object) "
-                                                   "or scanner (not available yet)")
+                                                   "or scanner (camera + projector, from --captures)")
       ->required()
       ->check(CLI::IsMember({"turntable", "scanner"}));
+  ScannerCalibrationArgs scanner_args;
+  calibrate->add_option("--captures", scanner_args.captures,
+                        "scanner: folders of one chessboard pose each, graycode_00.png… (the Gray-code "
+                        "sequence, then white and black); calibrates here, without sherdd")
+      ->check(CLI::ExistingDirectory);
+  calibrate->add_option("--out", scanner_args.out, "scanner: calibration file to write (default "
+                                                   "DATA_DIR/calibration/scanner.xml)");
+  calibrate->add_option("--data-dir", scanner_args.data_dir,
+                        "scanner: override station.data_dir (the database and default --out)");
+  calibrate->add_option("--reference", scanner_args.reference,
+                        "scanner: a calibration file (OpenCV XML) to print beside ours")
+      ->check(CLI::ExistingFile);
+  calibrate->add_option("--projector-width", scanner_args.projector_width, "scanner: projector pixels")
+      ->capture_default_str();
+  calibrate->add_option("--projector-height", scanner_args.projector_height, "scanner: projector pixels")
+      ->capture_default_str();
+  calibrate->add_option("--board-columns", scanner_args.board_columns,
+                        "inner corners along the board's long side")->capture_default_str();
+  calibrate->add_option("--board-rows", scanner_args.board_rows,
+                        "inner corners along the board's short side")->capture_default_str();
+  calibrate->add_option("--square-mm", scanner_args.square_mm, "scanner: chessboard square side")
+      ->capture_default_str();
+  calibrate->add_option("--black-thr", scanner_args.black_threshold,
+                        "white − black at or below this is shadow (grey levels)")->capture_default_str();
+  calibrate->add_option("--white-thr", scanner_args.white_threshold,
+                        "|pattern − inverse| below this is ambiguous (grey levels)")->capture_default_str();
   std::vector<std::string> files;
   std::string out_dir, units = "mm", background = "none";
   auto* process = app.add_subcommand("process", "run the pipeline offline on existing files (no daemon needed)");
@@ -291,6 +406,8 @@ int main(int argc, char** argv) {
 
   try {
     if (*scan) return cmd_scan(options);
+    if (*calibrate && calibration_kind == "scanner" && !scanner_args.captures.empty())
+      return cmd_calibrate_scanner(options, scanner_args);
     if (*calibrate) return cmd_calibrate(options, calibration_kind);
     if (app.got_subcommand("status")) return cmd_status(options);
     if (*jobs) return cmd_jobs(options, limit);

@@ -1,0 +1,55 @@
+// The scanner's projector: shows one 8-bit grey pattern at a time, full screen.
+//
+// Implementations: SimulatedProjector (below, for tests and the simulated station). A real
+// projector on a headless station is a display: the planned driver opens the DRM/KMS device, sets
+// the projector's native mode and shows each pattern full screen through EGL on GBM, waiting for
+// the page flip (vblank) before the camera is triggered. It is not built yet: nothing here can
+// drive a display (no DRM device on CI).
+#pragma once
+
+#include <cstdint>
+#include <mutex>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace sherd::drivers {
+
+class Projector {
+ public:
+  virtual ~Projector() = default;
+  virtual std::string describe() const = 0;
+  virtual int width() const = 0;
+  virtual int height() const = 0;
+  // Shows `pixels` (width() × height(), row-major) and returns once it is on screen.
+  virtual void show(std::span<const std::uint8_t> pixels) = 0;
+};
+
+// Holds the pattern being shown, for a simulated camera to look at (from any thread).
+class SimulatedProjector : public Projector {
+ public:
+  SimulatedProjector(int width, int height)
+      : width_(width), height_(height), shown_(std::size_t(width) * height, 0) {}
+  std::string describe() const override { return "simulated projector"; }
+  int width() const override { return width_; }
+  int height() const override { return height_; }
+  void show(std::span<const std::uint8_t> pixels) override {
+    if (pixels.size() != shown_.size())
+      throw std::invalid_argument("simulated projector: pattern size does not match the projector");
+    std::lock_guard lock(mutex_);
+    shown_.assign(pixels.begin(), pixels.end());
+  }
+  // The projector pixel (x, y) as lit now.
+  std::uint8_t lit(int x, int y) const {
+    std::lock_guard lock(mutex_);
+    return shown_[std::size_t(y) * width_ + x];
+  }
+
+ private:
+  int width_, height_;
+  mutable std::mutex mutex_;
+  std::vector<std::uint8_t> shown_;
+};
+
+}  // namespace sherd::drivers
