@@ -99,18 +99,20 @@ void write_overview_png(const Mesh& fused, const Result& result,
   // CAIRO_FORMAT_RGB24: one native-endian 32-bit word per pixel, 0x00RRGGBB.
   const unsigned char* data = cairo_image_surface_get_data(surface.get());
   const int stride = cairo_image_surface_get_stride(surface.get());
-  std::vector<std::uint8_t> rgb(static_cast<std::size_t>(width) * height * 3);
+  render::PngStream png(file, width, height, static_cast<int>(std::lround(px_per_mm * 25.4)),
+                        render::PngFormat::kRgb8);
+  std::vector<std::uint8_t> rgb(static_cast<std::size_t>(width) * 3);
   for (int y = 0; y < height; ++y) {
     const auto* row =
         reinterpret_cast<const std::uint32_t*>(data + static_cast<std::ptrdiff_t>(y) * stride);
     for (int x = 0; x < width; ++x) {
-      const std::size_t at = (static_cast<std::size_t>(y) * width + x) * 3;
-      rgb[at] = static_cast<std::uint8_t>(row[x] >> 16);
-      rgb[at + 1] = static_cast<std::uint8_t>(row[x] >> 8);
-      rgb[at + 2] = static_cast<std::uint8_t>(row[x]);
+      rgb[3 * x] = static_cast<std::uint8_t>(row[x] >> 16);
+      rgb[3 * x + 1] = static_cast<std::uint8_t>(row[x] >> 8);
+      rgb[3 * x + 2] = static_cast<std::uint8_t>(row[x]);
     }
+    png.write_row(rgb.data());
   }
-  render::write_png_rgb8(file, width, height, rgb, static_cast<int>(std::lround(px_per_mm * 25.4)));
+  png.finish();
 }
 
 }  // namespace sherd::segmentation
