@@ -8,6 +8,7 @@
 // Prints one JSON object per view and method, then a summary per data set and method (and for the
 // reference poses themselves, "reference": how well the views agree under them).
 //   bench_registration [--conf DIR/bun.conf] [--config config/station.toml] [--seeds 3]
+//                      [--scenes frame vessel] [--methods icp gicp | none] [--colour]
 #include "bench/bench_stats.h"
 #include "config/station_config.h"
 #include "core/errors.h"
@@ -35,6 +36,7 @@
 #include <map>
 #include <random>
 #include <regex>
+#include <set>
 #include <sstream>
 
 namespace {
@@ -229,7 +231,8 @@ DataSet read_conf(const std::filesystem::path& conf) {
 // ---------------------------------------------------------------------------------------------
 // Simulated station
 
-DataSet simulate(sherd::config::StationConfig config, std::uint64_t seed, const std::string& scene) {
+DataSet simulate(sherd::config::StationConfig config, std::uint64_t seed, const std::string& scene,
+               bool use_colour) {
   config.simulation.seed = seed;
   config.simulation.scene = scene;
   config.turntable.time_scale = 0.0;
@@ -242,6 +245,7 @@ DataSet simulate(sherd::config::StationConfig config, std::uint64_t seed, const 
   DataSet set{"simulated-" + scene, {}, {}, {}};
   // The seeds below: ±0.5° uniform about the axis (σ 0.29°), up to 0.2 mm in any direction.
   set.prior = {.angle_sd_deg = 0.29, .tilt_sd_deg = 0.05, .translation_sd_mm = 0.15};
+  set.params.use_colour = use_colour;
   station.turntable->home();
   const int views = 8;
   for (int i = 0; i < views; ++i) {
@@ -404,15 +408,24 @@ void evaluate(const DataSet& set, const std::string& method, const MethodResult&
   }
 }
 
+// PCL's methods to run beside ours (--methods).
+std::set<std::string> pcl_methods;
+
 void run_all(const DataSet& set, std::map<std::string, std::map<std::string, Samples>>& all) {
   const double voxel_mm = sherd::registration::Params{}.voxel_mm;
   std::vector<Pose> truth;
   for (const auto& v : set.views) truth.push_back(v.truth);
   all[set.name]["reference"].overlap_distance_mm.push_back(median_overlap_distance_mm(set, truth));
   evaluate(set, "ours", run_ours(set), all);
-  evaluate(set, "icp", run_pcl<pcl::IterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ>>(set, voxel_mm), all);
-  evaluate(set, "gicp", run_pcl<pcl::GeneralizedIterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ>>(set, voxel_mm),
-           all);
+  if (pcl_methods.contains("icp")) {
+    evaluate(set, "icp",
+             run_pcl<pcl::IterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ>>(set, voxel_mm), all);
+  }
+  if (pcl_methods.contains("gicp")) {
+    evaluate(set, "gicp",
+             run_pcl<pcl::GeneralizedIterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ>>(set, voxel_mm),
+             all);
+  }
 }
 
 void print_summaries(const std::map<std::string, std::map<std::string, Samples>>& all) {
@@ -429,6 +442,7 @@ void print_summaries(const std::map<std::string, std::map<std::string, Samples>>
                           {"median_overlap_distance_mm", number_or_null(quantile(s.overlap_distance_mm, 0.5))}};
       if (method == "ours") {
         for (const char* other : {"icp", "gicp"}) {
+          if (!methods.contains(other)) continue;
           const auto& o = methods.at(other);
           const auto ratio = [](const std::vector<double>& a, const std::vector<double>& b) {
             return number_or_null(quantile(a, 0.5) / quantile(b, 0.5));
@@ -449,7 +463,7 @@ void print_summaries(const std::map<std::string, std::map<std::string, Samples>>
 
 int main(int argc, char** argv) {
   CLI::App app{"bench_registration: view registration errors against ground truth, ours vs PCL ICP and GICP"};
-  std::string conf = "/work/shared/data/stanford-bunny/data/bun.conf";
+  std::string conf = "../shared/data/stanford-bunny/data/bun.conf";
   std::string config_file = "config/station.toml";
   int seeds = 3;
   app.add_option("--conf", conf, "a .conf file (Stanford layout); empty: skip")->capture_default_str();
@@ -457,7 +471,19 @@ int main(int argc, char** argv) {
   app.add_option("--seeds", seeds, "simulated seeds (each: a frame and a vessel scan); 0: skip")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
+  std::vector<std::string> scenes{"frame", "vessel"};
+  app.add_option("--scenes", scenes, "simulated scenes per seed")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"frame", "vessel"}));
+  std::vector<std::string> methods{"icp", "gicp"};
+  app.add_option("--methods", methods, "PCL's methods to run beside ours (none: only ours)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"icp", "gicp", "none"}));
+  bool use_colour = false;
+  app.add_flag("--colour", use_colour,
+               "our method with its photometric term (registration use_colour) on simulated scans");
   CLI11_PARSE(app, argc, argv);
+  pcl_methods.insert(methods.begin(), methods.end());
   spdlog::set_level(spdlog::level::warn);
 
   try {
@@ -466,7 +492,9 @@ int main(int argc, char** argv) {
     if (seeds > 0) {
       const auto config = sherd::config::load_station_config(config_file);
       for (int seed = 1; seed <= seeds; ++seed) {
-        for (const char* scene : {"frame", "vessel"}) run_all(simulate(config, static_cast<std::uint64_t>(seed), scene), all);
+        for (const auto& scene : scenes) {
+          run_all(simulate(config, static_cast<std::uint64_t>(seed), scene, use_colour), all);
+        }
       }
     }
     print_summaries(all);

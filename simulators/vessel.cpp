@@ -165,12 +165,51 @@ std::vector<Point2> wall_controls(Family family, Rng& rng) {
   return c;
 }
 
-Rgb8 mottle(const Rgb8& c, Rng& rng) {
-  const double k = rng.uniform(0.95, 1.05);  // one factor: tone keeps its hue
-  auto ch = [k](std::uint8_t v) {
-    return static_cast<std::uint8_t>(clampd(std::round(v * k), 0.0, 255.0));
-  };
-  return {ch(c.r), ch(c.g), ch(c.b)};
+// Smooth value noise in [-1, 1]: random values on an integer lattice, hashed from the cell and
+// the seed, blended with a smoothstep. Written here because it is a dozen lines and a noise
+// library (libnoise) would be a dependency for the simulator alone.
+double lattice_value(std::int64_t x, std::int64_t y, std::int64_t z, std::uint64_t seed) {
+  std::uint64_t h = seed ^ (static_cast<std::uint64_t>(x) * 0x9E3779B97F4A7C15ULL) ^
+                    (static_cast<std::uint64_t>(y) * 0xC2B2AE3D27D4EB4FULL) ^
+                    (static_cast<std::uint64_t>(z) * 0x165667B19E3779F9ULL);
+  h ^= h >> 33;  // splitmix64's finaliser
+  h *= 0xFF51AFD7ED558CCDULL;
+  h ^= h >> 33;
+  h *= 0xC4CEB9FE1A85EC53ULL;
+  h ^= h >> 33;
+  return static_cast<double>(h >> 11) * 0x1.0p-52 - 1.0;
+}
+
+double value_noise(const Vec3d& p, std::uint64_t seed) {
+  const Vec3d cell = p.array().floor();
+  const Vec3d f = p - cell;
+  const Vec3d w = f.array().square() * (3.0 - 2.0 * f.array());  // smoothstep
+  const auto x = static_cast<std::int64_t>(cell.x()), y = static_cast<std::int64_t>(cell.y()),
+             z = static_cast<std::int64_t>(cell.z());
+  double sum = 0.0;
+  for (int corner = 0; corner < 8; ++corner) {
+    const int dx = corner & 1, dy = (corner >> 1) & 1, dz = (corner >> 2) & 1;
+    sum += (dx ? w.x() : 1 - w.x()) * (dy ? w.y() : 1 - w.y()) * (dz ? w.z() : 1 - w.z()) *
+           lattice_value(x + dx, y + dy, z + dz, seed);
+  }
+  return sum;
+}
+
+// ±12 %: plain to see in a photo, far from a black or white background.
+constexpr double kClayTextureAmplitude = 0.12;
+// Wavelengths of the clay texture's octaves (mm) and their shares of its amplitude: grains and
+// spots of a few millimetres up to firing clouds of a few centimetres.
+constexpr std::array<std::pair<double, double>, 3> kTextureOctaves{
+    {{4.0, 0.5}, {9.0, 0.3}, {25.0, 0.2}}};
+
+double texture_factor(const Vec3f& p, const ClayTexture& texture) {
+  if (texture.amplitude == 0.0) return 1.0;
+  double noise = 0.0;
+  std::uint64_t seed = texture.seed;
+  for (const auto& [wavelength, share] : kTextureOctaves) {
+    noise += share * value_noise(p.cast<double>() / wavelength, seed++);
+  }
+  return 1.0 + texture.amplitude * noise;
 }
 
 Vec3f revolve(const Point2& p, double theta) {
@@ -197,6 +236,12 @@ std::uint32_t add_vertex(Mesh& mesh, const Vec3f& p, const Rgb8& colour) {
   mesh.vertices.points.push_back(p);
   mesh.vertices.colours.push_back(colour);
   return static_cast<std::uint32_t>(mesh.vertices.points.size() - 1);
+}
+
+// A vertex of clay of colour `base`, textured where it lies.
+std::uint32_t add_clay_vertex(Mesh& mesh, const Vec3f& p, const Rgb8& base,
+                              const ClayTexture& texture, Rng& rng) {
+  return add_vertex(mesh, p, clay_colour(base, p, texture, rng));
 }
 
 // A smooth random wobble (a few sines) of the given peak amplitude: the shape of a fracture
@@ -383,13 +428,24 @@ ClayColours random_clay(Rng& rng) {
   const double inner = rng.uniform(0.85, 0.97);
   // The fired core is greyer and darker than the surfaces.
   const double grey = 100.0;
+  const ClayTexture texture{.seed = static_cast<std::uint64_t>(rng.uniform() * 0x1.0p53),
+                            .amplitude = kClayTextureAmplitude};
   return {rgb(r, g, b), rgb(r * inner, g * inner, b * inner),
           rgb(0.85 * (0.6 * r + 0.4 * grey), 0.85 * (0.6 * g + 0.4 * grey),
-              0.85 * (0.6 * b + 0.4 * grey))};
+              0.85 * (0.6 * b + 0.4 * grey)),
+          texture};
+}
+
+Rgb8 clay_colour(const Rgb8& base, const Vec3f& p, const ClayTexture& texture, Rng& rng) {
+  const double k = texture_factor(p, texture) * rng.uniform(0.95, 1.05);
+  auto ch = [k](std::uint8_t v) {
+    return static_cast<std::uint8_t>(clampd(std::round(v * k), 0.0, 255.0));
+  };
+  return {ch(base.r), ch(base.g), ch(base.b)};
 }
 
 Mesh revolve_section(const std::vector<Point2>& poly, const std::vector<Rgb8>& colours,
-                     Rng& rng) {
+                     Rng& rng, const ClayTexture& texture) {
   double max_r = 0.0;
   for (const auto& p : poly) max_r = std::max(max_r, p.x());
   const int n_theta =
@@ -401,7 +457,7 @@ Mesh revolve_section(const std::vector<Point2>& poly, const std::vector<Rgb8>& c
     ring_start[j] = static_cast<std::uint32_t>(mesh.vertices.points.size());
     const int n = poly[j].x() < 1e-9 ? 1 : n_theta;  // one vertex on the axis
     for (int k = 0; k < n; ++k) {
-      add_vertex(mesh, revolve(poly[j], 2 * kPi * k / n_theta), mottle(colours[j], rng));
+      add_clay_vertex(mesh, revolve(poly[j], 2 * kPi * k / n_theta), colours[j], texture, rng);
     }
   }
   // Ring j along the profile is `a`, angle is `b`: the normal e_θ × e_profile points to the
@@ -418,7 +474,7 @@ Mesh revolve_vessel(const VesselProfile& profile, const ClayColours& colours, Rn
   std::vector<Rgb8> ring_colours(poly.size(), colours.outer);
   std::fill(ring_colours.end() - static_cast<std::ptrdiff_t>(profile.inner.size()),
             ring_colours.end(), colours.inner);
-  return revolve_section(poly, ring_colours, rng);
+  return revolve_section(poly, ring_colours, rng, colours.texture);
 }
 
 const char* to_string(SherdKind kind) {
@@ -537,7 +593,8 @@ SherdPiece break_sherd(const VesselProfile& profile, const ClayColours& colours,
   auto skin = [&](int w, const Rgb8& colour) {
     const auto base = static_cast<std::uint32_t>(mesh.vertices.points.size());
     for (int i = 0; i < nu; ++i)
-      for (int j = 0; j < nv; ++j) add_vertex(mesh, point(i, j, w), mottle(colour, rng));
+      for (int j = 0; j < nv; ++j)
+        add_clay_vertex(mesh, point(i, j, w), colour, colours.texture, rng);
     auto idx = [&](int i, int j) { return base + static_cast<std::uint32_t>(i * nv + j); };
     if (w == 0) {
       emit_grid(mesh, nu, nv, [&](int u, int v) { return idx(u, v); });  // e_v × e_u
@@ -554,7 +611,7 @@ SherdPiece break_sherd(const VesselProfile& profile, const ClayColours& colours,
     for (int k = 0; k < count; ++k) {
       for (int w = 0; w < 2; ++w) {
         const auto [i, j] = cell(k);
-        add_vertex(mesh, point(i, j, w), mottle(colours.fracture, rng));
+        add_clay_vertex(mesh, point(i, j, w), colours.fracture, colours.texture, rng);
       }
     }
     auto idx = [&](int k, int w) { return base + static_cast<std::uint32_t>(2 * k + w); };
@@ -575,8 +632,8 @@ SherdPiece break_sherd(const VesselProfile& profile, const ClayColours& colours,
     const int nl = static_cast<int>(profile.lip.size());
     for (int k = 0; k < nl; ++k) {
       for (int j = 0; j < nv; ++j) {
-        add_vertex(mesh, revolve(profile.lip[k], T_uv[(nu - 1) * nv + j]),
-                   mottle(colours.outer, rng));
+        add_clay_vertex(mesh, revolve(profile.lip[k], T_uv[(nu - 1) * nv + j]), colours.outer,
+                        colours.texture, rng);
       }
     }
     emit_grid(mesh, nl, nv, [&](int k, int j) {  // e_v × e_w
@@ -591,7 +648,8 @@ SherdPiece break_sherd(const VesselProfile& profile, const ClayColours& colours,
                                   static_cast<float>(std::cos(theta)), 0.0f);
       const auto first = static_cast<std::uint32_t>(mesh.vertices.points.size());
       for (int k = 0; k < nl; ++k) {
-        add_vertex(mesh, revolve(profile.lip[k], theta), mottle(colours.fracture, rng));
+        add_clay_vertex(mesh, revolve(profile.lip[k], theta), colours.fracture, colours.texture,
+                        rng);
       }
       for (int k = 1; k + 1 < nl; ++k) {
         Triangle t{first, first + k, first + k + 1};

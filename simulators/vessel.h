@@ -8,6 +8,7 @@
 
 #include <Eigen/Core>
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -48,17 +49,31 @@ VesselProfile make_vessel_profile(Family family, Rng& rng, const VesselLimits& l
 // over the lip and down the inside back to the axis: the boundary of the solid's half-section.
 std::vector<Point2> section_polyline(const VesselProfile& profile);
 
+// Real fired clay is not one flat tone: firing clouds, slip, stains and temper grains vary it over
+// millimetres to centimetres. A ClayTexture is that variation as a smooth brightness factor fixed
+// in the vessel frame (a function of position, seeded per vessel, so a sherd and the vessel it came
+// from agree); amplitude 0 is a flat tone. Every vertex also gets a small random mottle.
+struct ClayTexture {
+  std::uint64_t seed = 0;
+  double amplitude = 0.0;  // relative brightness variation (±, roughly)
+};
+
+// The colour `base` at vessel-frame position p: texture times mottle (one factor for all
+// channels, so the tone keeps its hue).
+Rgb8 clay_colour(const Rgb8& base, const Vec3f& p, const ClayTexture& texture, Rng& rng);
+
 // Surface colours of one vessel (clay tone per vessel; fracture faces show the fired core).
 struct ClayColours {
   Rgb8 outer, inner, fracture;
+  ClayTexture texture;
 };
 ClayColours random_clay(Rng& rng);
 
 // The surface of revolution of a section polyline that starts and ends on the axis (closed),
 // outward normals when the material lies left of the polyline's direction in the (r, z) plane;
-// `colours[j]` colours ring j. Repeat a point to keep a sharp crease there.
+// `colours[j]` colours ring j, varied by `texture`. Repeat a point to keep a sharp crease there.
 Mesh revolve_section(const std::vector<Point2>& section, const std::vector<Rgb8>& colours,
-                     Rng& rng);
+                     Rng& rng, const ClayTexture& texture = {});
 
 // The closed surface of revolution of the vessel's section, coloured per surface.
 Mesh revolve_vessel(const VesselProfile& profile, const ClayColours& colours, Rng& rng);

@@ -49,10 +49,13 @@ void check_input(const std::vector<ViewInput>& views, const PriorUncertainty& pr
       !(params.max_correction_deg > 0) || !(params.max_correction_mm > 0) ||
       !(params.min_edge_overlap > 0 && params.min_edge_overlap <= 1) ||
       params.max_extra_edges_per_view < 0 || params.icp_max_points < 1 ||
+      !(params.colour_max_sd_mm > 0) ||
       !(params.degenerate_eigenvalue_ratio >= 0 && params.degenerate_eigenvalue_ratio < 1)) {
     throw InputError(
         "registration: parameters out of range (voxel, distances, limits and iterations must be "
-        "positive, min_edge_overlap in (0, 1], degenerate_eigenvalue_ratio in [0, 1)); fix the "
+        "positive, as must colour_max_sd_mm; min_edge_overlap in (0, 1], "
+        "degenerate_eigenvalue_ratio "
+        "in [0, 1)); fix the "
         "registration parameters");
   }
   if (!(prior.angle_sd_deg > 0) || !(prior.tilt_sd_deg > 0) || !(prior.translation_sd_mm > 0) ||
@@ -227,41 +230,64 @@ std::vector<DegenerateDirection> named_directions(
   return named;
 }
 
-struct Step {
-  Vector6d twist = Vector6d::Zero();  // (rotation × scale, translation)
-  std::vector<DegenerateDirection> degenerate;
+// Weighted Gauss-Newton normal equations of residual rows in ICP's twist (rotation scaled by the
+// source's RMS radius, about its centroid): a residual along `direction` at the scaled offset
+// `arm` from the centroid.
+struct NormalEquations {
+  Matrix6d jtj = Matrix6d::Zero();
+  Vector6d jtr = Vector6d::Zero();
+  std::size_t rows = 0;
+
+  void add(const Vec3d& arm, const Vec3d& direction, double residual, double weight) {
+    Vector6d row;
+    row << arm.cross(direction), direction;
+    jtj.selfadjointView<Eigen::Lower>().rankUpdate(row, weight);
+    jtr += weight * residual * row;
+    ++rows;
+  }
+  void complete() { jtj = jtj.selfadjointView<Eigen::Lower>(); }
 };
 
-// The Gauss-Newton step of JᵀJ x = −Jᵀr, with degenerate directions found from the eigenvalues.
-// With the handling on, the step is solved under the constraint that it does not move the view
-// in what names each degenerate direction: for a "rot_*" one, the rotation about that
+// The eigen-directions of JᵀJ whose eigenvalue is below degenerate_eigenvalue_ratio × the largest
+// (orthonormal columns), named by world axes.
+struct Degeneracy {
+  Eigen::Matrix<double, 6, Eigen::Dynamic> basis{6, 0};
+  std::vector<DegenerateDirection> named;
+
+  Matrix6d projector() const { return basis * basis.transpose(); }
+};
+
+Degeneracy find_degeneracy(const Matrix6d& jtj, const Params& params) {
+  const Eigen::SelfAdjointEigenSolver<Matrix6d> eigen(jtj);
+  const double largest = eigen.eigenvalues()(5);
+  Degeneracy degeneracy;
+  if (!(largest > 0)) return degeneracy;
+  for (int i = 0; i < 6; ++i) {
+    if (eigen.eigenvalues()(i) > params.degenerate_eigenvalue_ratio * largest) continue;
+    degeneracy.basis.conservativeResize(Eigen::NoChange, degeneracy.basis.cols() + 1);
+    degeneracy.basis.rightCols<1>() = eigen.eigenvectors().col(i);
+  }
+  degeneracy.named = named_directions(degeneracy.basis, jtj, largest);
+  return degeneracy;
+}
+
+// The Gauss-Newton step of JᵀJ x = −Jᵀr that does not move the view in what names each `held`
+// direction: for a "rot_*" one, the rotation about that
 // direction's rotation axis; for a "trans_*" one, the translation along it. The view keeps the
 // prior there exactly, and the constraint is metric-free: constraining the whole eigenvector
 // instead (truncating the eigen-solution, Zhang, Kaess & Singh, ICRA 2016) keeps a blend of
 // rotation and translation that depends on the scaling, so part of a prior's translation error
 // would be turned into a rotation about the pot's axis. A prior term would need a weight to tune
 // and still let noise pull the view by an amount that weight sets.
-Step constrained_step(const Matrix6d& jtj, const Vector6d& jtr, const Params& params) {
-  const Eigen::SelfAdjointEigenSolver<Matrix6d> eigen(jtj);
-  const double largest = eigen.eigenvalues()(5);
-  Step step;
-  if (!(largest > 0)) return step;
-  Eigen::Matrix<double, 6, Eigen::Dynamic> degenerate(6, 0);
-  for (int i = 0; i < 6; ++i) {
-    if (eigen.eigenvalues()(i) > params.degenerate_eigenvalue_ratio * largest) continue;
-    degenerate.conservativeResize(Eigen::NoChange, degenerate.cols() + 1);
-    degenerate.rightCols<1>() = eigen.eigenvectors().col(i);
-  }
-  step.degenerate = named_directions(degenerate, jtj, largest);
-
+Vector6d constrained_step(const Matrix6d& jtj, const Vector6d& jtr,
+                          const std::vector<DegenerateDirection>& held_directions) {
+  if (!(jtj.diagonal().maxCoeff() > 0)) return Vector6d::Zero();
   Eigen::Matrix<double, 6, Eigen::Dynamic> held(6, 0);  // the step must be orthogonal to these
-  if (params.keep_prior_in_degenerate_directions) {
-    for (const auto& direction : step.degenerate) {
-      Vector6d part = Vector6d::Map(direction.twist.data());
-      (direction.name.starts_with("rot") ? part.tail<3>() : part.head<3>()).setZero();
-      held.conservativeResize(Eigen::NoChange, held.cols() + 1);
-      held.rightCols<1>() = part.normalized();
-    }
+  for (const auto& direction : held_directions) {
+    Vector6d part = Vector6d::Map(direction.twist.data());
+    (direction.name.starts_with("rot") ? part.tail<3>() : part.head<3>()).setZero();
+    held.conservativeResize(Eigen::NoChange, held.cols() + 1);
+    held.rightCols<1>() = part.normalized();
   }
   // Solved in a basis of the directions left free (null-space method); the complete orthogonal
   // decomposition gives the least-norm step should the free system still be singular.
@@ -272,9 +298,40 @@ Step constrained_step(const Matrix6d& jtj, const Vector6d& jtr, const Params& pa
     free = q.rightCols(6 - held.cols());
   }
   const Eigen::MatrixXd reduced = free.transpose() * jtj * free;
-  step.twist = free * Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(reduced).solve(
-                          -(free.transpose() * jtr));
-  return step;
+  return free * Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(reduced).solve(
+                    -(free.transpose() * jtr));
+}
+
+// The directions the geometry cannot see, split by what the colour sees among them: those where
+// the photometric equations alone pin the view to params.colour_max_sd_mm (rotations measured at
+// the view's RMS radius) are seen; the rest are held at the prior. The geometry's relative
+// eigenvalue test cannot judge the colour: its information is of another kind, a few hundredths
+// of the geometry's strongest direction yet worth hundredths of a degree.
+struct ColourSplit {
+  Eigen::Matrix<double, 6, Eigen::Dynamic> seen{6, 0};
+  Degeneracy held;
+};
+
+ColourSplit split_by_colour(const Degeneracy& silent, const Matrix6d& photometric_jtj,
+                            const Matrix6d& geometric_jtj, const Params& params) {
+  ColourSplit split;
+  if (silent.basis.cols() == 0) return split;
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(silent.basis.transpose() *
+                                                             photometric_jtj * silent.basis);
+  const double min_information = 1.0 / (params.colour_max_sd_mm * params.colour_max_sd_mm);
+  for (Eigen::Index i = 0; i < eigen.eigenvalues().size(); ++i) {
+    auto& basis = eigen.eigenvalues()(i) >= min_information ? split.seen : split.held.basis;
+    basis.conservativeResize(Eigen::NoChange, basis.cols() + 1);
+    basis.rightCols<1>() = silent.basis * eigen.eigenvectors().col(i);
+  }
+  if (split.seen.cols() == 0) {
+    split.held = silent;
+  } else if (split.held.basis.cols() > 0) {
+    const Eigen::SelfAdjointEigenSolver<Matrix6d> geometric(geometric_jtj);
+    split.held.named =
+        named_directions(split.held.basis, geometric_jtj, geometric.eigenvalues()(5));
+  }
+  return split;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -456,7 +513,9 @@ struct PairRefinement {
   Eigen::Isometry3d correction = Eigen::Isometry3d::Identity();  // world frame, of the source
   int iterations = 0;
   bool converged = false;
-  bool used_colour = false;
+  bool used_colour = false;  // the colour constrained what the geometry could not
+  // What the geometry alone could not see in the last stage (colour may have seen it since).
+  std::vector<DegenerateDirection> geometry_degenerate;
   std::vector<DegenerateDirection> degenerate;  // of the last iteration
   Matrix6d information = Matrix6d::Zero();  // origin twist of the source, degenerate part removed
   // Projector onto the directions the pair does see, in ICP's twist about the source's centroid.
@@ -494,6 +553,7 @@ PairRefinement refine_pair(const ViewData& target, const ViewData& source,
   PairRefinement result;
   result.correction = initial;
   Matrix6d last_jtj = Matrix6d::Zero();
+  Matrix6d last_held = Matrix6d::Zero();  // projector onto the held directions
   const auto run_stages = [&](std::size_t first_stage) {
     for (std::size_t stage = first_stage; stage < distances.size(); ++stage) {
       const bool last_stage = stage + 1 == distances.size();
@@ -538,37 +598,45 @@ PairRefinement refine_pair(const ViewData& target, const ViewData& source,
         }
         const double photometric_weight = 1.0 / std::pow(robust_sd(finite, kContrastNoiseFloor), 2);
 
-        Matrix6d jtj = Matrix6d::Zero();
-        Vector6d jtr = Vector6d::Zero();
-        const auto add_row = [&](const Vec3d& p, const Vec3d& direction, double residual,
-                                 double weight) {
-          Vector6d row;
-          row << (p - c).cross(direction) / s, direction;
-          jtj.selfadjointView<Eigen::Lower>().rankUpdate(row, weight);
-          jtr += weight * residual * row;
-        };
+        NormalEquations geometry, photometry;
         for (std::size_t k = 0; k < pairs.size(); ++k) {
           const Vec3d p = (*moved)[pairs[k].source].getVector3fMap().cast<double>();
-          add_row(p, target_cloud[pairs[k].target].getNormalVector3fMap().cast<double>(),
-                  geometric[k], geometric_weight);
+          geometry.add((p - c) / s,
+                       target_cloud[pairs[k].target].getNormalVector3fMap().cast<double>(),
+                       geometric[k], geometric_weight);
           if (colour && std::isfinite(photometric[k])) {
-            add_row(p, target.gradient[pairs[k].target].cast<double>(), photometric[k],
-                    photometric_weight);
+            photometry.add((p - c) / s, target.gradient[pairs[k].target].cast<double>(),
+                           photometric[k], photometric_weight);
           }
         }
-        jtj = jtj.selfadjointView<Eigen::Lower>();
+        geometry.complete();
+        photometry.complete();
+        // The colour speaks only where the shape is silent: its equations enter projected onto
+        // the directions the geometry cannot constrain and it can. Elsewhere geometry is the
+        // better judge (shading and occlusion edges move the colour's apparent position by a
+        // fraction of a millimetre between stops), so on a tray the result is the geometric one.
+        Degeneracy silent;
+        if (params.keep_prior_in_degenerate_directions) {
+          silent = find_degeneracy(geometry.jtj, params);
+        }
+        ColourSplit split = split_by_colour(silent, photometry.jtj, geometry.jtj, params);
+        const Matrix6d project = split.seen * split.seen.transpose();
+        const Matrix6d jtj = geometry.jtj + project * photometry.jtj * project;
+        const Vector6d jtr = geometry.jtr + project * photometry.jtr;
         last_jtj = jtj;
-        result.used_colour = colour;
+        last_held = split.held.projector();
+        if (last_stage) result.geometry_degenerate = silent.named;
+        result.used_colour = split.seen.cols() > 0;
 
-        Step step = constrained_step(jtj, jtr, params);
-        const Vec3d rotation = step.twist.head<3>() / s;
-        const Vec3d translation = step.twist.tail<3>();
+        const Vector6d twist = constrained_step(jtj, jtr, split.held.named);
+        const Vec3d rotation = twist.head<3>() / s;
+        const Vec3d translation = twist.tail<3>();
         const double angle = rotation.norm();
         Eigen::Isometry3d delta{Eigen::Translation3d(c + translation)};
         if (angle > 0) delta.rotate(Eigen::AngleAxisd(angle, rotation / angle));
         delta.translate(-c);
         result.correction = delta * result.correction;
-        result.degenerate = std::move(step.degenerate);
+        result.degenerate = std::move(split.held.named);
         ++result.iterations;
         // The last stage has converged when an iteration moves the view by less than 1e-3 mm
         // (rotation measured at the RMS radius): far below the scanner's noise, yet reachable on
@@ -586,10 +654,11 @@ PairRefinement refine_pair(const ViewData& target, const ViewData& source,
   // The coarse stages' loose pairs can hold a direction the surface itself does not (a pot's
   // rotation about its axis) and slide along it before the final stage finds it degenerate. Such a
   // slide is undone — the rotation about the direction's axis put back to the prior's — and the
-  // final stage run again.
+  // final stage run again: from there the prior holds the direction, or the colour, which sees it
+  // only within a few millimetres (its texture's scale), takes it from the prior.
   if (params.keep_prior_in_degenerate_directions) {
     bool undone = false;
-    for (const auto& direction : result.degenerate) {
+    for (const auto& direction : result.geometry_degenerate) {
       if (!direction.name.starts_with("rot")) continue;
       const Vec3d axis = Vector6d::Map(direction.twist.data()).head<3>().normalized();
       const Eigen::Quaterniond q(result.correction.linear());
@@ -604,20 +673,11 @@ PairRefinement refine_pair(const ViewData& target, const ViewData& source,
     if (!result.converged) return result;
   }
   // The pair's information about the source's pose: its normal equations, with the directions it
-  // could not see removed (there the edge knows nothing; the priors decide) — unless the handling
-  // is off, where plain ICP's slide counts as a measurement.
-  const Eigen::SelfAdjointEigenSolver<Matrix6d> eigen(last_jtj);
-  Vector6d kept = eigen.eigenvalues();
-  for (int i = 0; i < 6; ++i) {
-    if (params.keep_prior_in_degenerate_directions &&
-        kept(i) <= params.degenerate_eigenvalue_ratio * eigen.eigenvalues()(5)) {
-      kept(i) = 0.0;
-    }
-  }
-  const Matrix6d centred =
-      eigen.eigenvectors() * kept.asDiagonal() * eigen.eigenvectors().transpose();
-  const Vector6d seen = (kept.array() > 0).cast<double>();
-  result.seen = eigen.eigenvectors() * seen.asDiagonal() * eigen.eigenvectors().transpose();
+  // could not see (held: neither the geometry nor the colour) removed — there the edge knows
+  // nothing; the priors decide. With the handling off nothing is held: plain ICP's slide counts
+  // as a measurement.
+  result.seen = Matrix6d::Identity() - last_held;
+  const Matrix6d centred = result.seen * last_jtj * result.seen;
   // The rows linearise a rotation about the fixed world point c (where the source's centroid was
   // at its prior), whatever the correction so far.
   const Matrix6d a = centred_from_origin(c, s);
@@ -1069,8 +1129,12 @@ Result register_views(const std::vector<ViewInput>& views,
     solve_consistent();
   } else {
     for (std::size_t k = 0; k < candidates.size(); ++k) {
-      result.edges[k] = {candidates[k].target, candidates[k].source, candidates[k].neighbours,
-                         candidates[k].overlap, "accepted"};
+      EdgeResult& edge = result.edges[k];
+      edge.target = candidates[k].target;
+      edge.source = candidates[k].source;
+      edge.neighbours = candidates[k].neighbours;
+      edge.overlap_at_prior = candidates[k].overlap;
+      edge.status = "accepted";
     }
   }
 

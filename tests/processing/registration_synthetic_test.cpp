@@ -75,13 +75,6 @@ std::optional<Hit> hit_scene(const Vec3d& o, const Vec3d& d) {
   return best;
 }
 
-// Distance to the union's surface from outside or on it (min of the solids' distances).
-double distance_to_scene(const Vec3d& p) {
-  const Vec3d q = (p - (kBoxLo + kBoxHi) / 2).cwiseAbs() - (kBoxHi - kBoxLo) / 2;
-  const double box = q.cwiseMax(0.0).norm() + std::min(q.maxCoeff(), 0.0);
-  return std::min({box, (p - kBumpTop).norm() - kBumpTopR, (p - kBumpSide).norm() - kBumpSideR});
-}
-
 // Scanner 350 mm from the axis, 150 mm up, looking at the object's middle (optical axis = +z,
 // image x right, y down).
 Pose scanner_to_world() {
