@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <numbers>
 #include <optional>
@@ -428,7 +429,11 @@ ClayColours random_clay(Rng& rng) {
   const double inner = rng.uniform(0.85, 0.97);
   // The fired core is greyer and darker than the surfaces.
   const double grey = 100.0;
-  const ClayTexture texture{.seed = static_cast<std::uint64_t>(rng.uniform() * 0x1.0p53),
+  // The texture is seeded from the tone's own draws (distinct per vessel), not from a further
+  // draw: that would shift the random stream of every later part of every scene.
+  const ClayTexture texture{.seed = std::bit_cast<std::uint64_t>(r) ^
+                                    std::rotl(std::bit_cast<std::uint64_t>(g), 21) ^
+                                    std::rotl(std::bit_cast<std::uint64_t>(b), 42),
                             .amplitude = kClayTextureAmplitude};
   return {rgb(r, g, b), rgb(r * inner, g * inner, b * inner),
           rgb(0.85 * (0.6 * r + 0.4 * grey), 0.85 * (0.6 * g + 0.4 * grey),

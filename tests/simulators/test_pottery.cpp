@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 
@@ -114,6 +115,29 @@ TEST(Vessel, ProfilesArePlausible) {
       }
     }
   }
+}
+
+// The clay texture belongs to the surface, not to the draw: the same vessel-frame point gets the
+// same texture factor whatever the random stream (only the ±5 % per-vertex mottle differs, so two
+// draws differ by a factor within 0.95/1.05 … 1.05/0.95), and over the surface it varies beyond
+// that mottle; a flat tone (amplitude 0) stays within the mottle.
+TEST(Clay, TextureIsFixedOnTheSurfaceAndVariesAcrossIt) {
+  const Rgb8 base{200, 140, 100};
+  const ClayTexture texture{.seed = 42, .amplitude = 0.12};
+  Rng points(1), first(2), second(3);
+  double widest = 0.0;
+  for (int i = 0; i < 500; ++i) {
+    const Vec3f p(static_cast<float>(points.uniform(-100, 100)),
+                  static_cast<float>(points.uniform(-100, 100)),
+                  static_cast<float>(points.uniform(0, 200)));
+    const double a = clay_colour(base, p, texture, first).r;
+    const double b = clay_colour(base, p, texture, second).r;
+    EXPECT_NEAR(a / b, 1.0, 0.11) << "at point " << i;
+    widest = std::max(widest, std::abs(a / base.r - 1.0));
+    const double flat = clay_colour(base, p, ClayTexture{}, first).r;
+    EXPECT_NEAR(flat / base.r, 1.0, 0.051);
+  }
+  EXPECT_GT(widest, 0.08);  // beyond the mottle's 5 %
 }
 
 TEST(Vessel, RimDiameterMatchesTheMesh) {
