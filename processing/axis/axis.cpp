@@ -21,7 +21,7 @@
 #include <unordered_map>
 
 #include "core/errors.h"
-#include "processing/axis/axis_line.h"
+#include "processing/axis/fit_common.h"
 
 namespace sherd::axis {
 namespace {
@@ -308,15 +308,7 @@ AxisEstimate estimate_axis(const Cloud& sherd, const Params& params) {
   }
 
   std::mt19937_64 rng(params.seed);
-  std::vector<std::uint32_t> chosen(sherd.size());
-  std::iota(chosen.begin(), chosen.end(), 0u);
-  if (chosen.size() > params.max_lines) {
-    std::shuffle(chosen.begin(), chosen.end(), rng);
-    chosen.resize(params.max_lines);
-  }
-  Vec3d centroid = Vec3d::Zero();
-  for (auto i : chosen) centroid += sherd.points[i].cast<double>();
-  centroid /= static_cast<double>(chosen.size());
+  const auto [chosen, centroid] = detail::subsample(sherd, params.max_lines, rng);
   // All points take part in the normal re-estimation, only the chosen ones become lines.
   std::vector<Vec3d> points(sherd.size()), input_normals(sherd.size());
   for (std::size_t i = 0; i < sherd.size(); ++i) {

@@ -18,7 +18,7 @@
 #include <unordered_map>
 
 #include "processing/axis/axis.h"
-#include "processing/axis/axis_line.h"
+#include "processing/axis/fit_common.h"
 
 namespace sherd::axis {
 namespace {
@@ -193,16 +193,8 @@ AxisEstimate refine_axis(const Cloud& sherd, const AxisEstimate& start,
   estimate.method = start.method + "+profile-consistency";
 
   Problem problem;
-  std::vector<std::uint32_t> chosen(sherd.size());
-  std::iota(chosen.begin(), chosen.end(), 0u);
   std::mt19937_64 rng(params.seed);
-  if (chosen.size() > params.max_points) {
-    std::shuffle(chosen.begin(), chosen.end(), rng);
-    chosen.resize(params.max_points);
-  }
-  Vec3d centroid = Vec3d::Zero();
-  for (auto i : chosen) centroid += sherd.points[i].cast<double>();
-  centroid /= static_cast<double>(chosen.size());
+  const auto [chosen, centroid] = detail::subsample(sherd, params.max_points, rng);
   for (auto i : chosen) {
     problem.points.push_back(sherd.points[i].cast<double>() - centroid);
     problem.normals.push_back(sherd.normals[i].cast<double>().normalized());

@@ -1,16 +1,40 @@
-// The axis as a line and its four degrees of freedom about a start line, shared by the two
-// Levenberg-Marquardt refinements of sherd_axis (axis.cpp: line-to-line distances; refine.cpp:
-// profile consistency). Internal to sherd_axis: not part of its public header axis.h.
+// What the two axis fits of sherd_axis share (axis.cpp: normal lines, refined on line-to-line
+// distances; refine.cpp: profile consistency): the random subsample they work on, the axis as a
+// line, its four degrees of freedom about a start line and the Levenberg-Marquardt call over them.
+// Internal to sherd_axis: not part of its public header axis.h.
 #pragma once
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <numeric>
+#include <random>
 #include <unsupported/Eigen/NonLinearOptimization>
 #include <unsupported/Eigen/NumericalDiff>
+#include <vector>
 
 #include "core/types.h"
 
 namespace sherd::axis::detail {
+
+// At most `most` of the sherd's points (a random choice when it has more) and their centroid.
+struct Subsample {
+  std::vector<std::uint32_t> chosen;
+  Vec3d centroid = Vec3d::Zero();
+};
+inline Subsample subsample(const Cloud& sherd, std::size_t most, std::mt19937_64& rng) {
+  Subsample s;
+  s.chosen.resize(sherd.size());
+  std::iota(s.chosen.begin(), s.chosen.end(), 0u);
+  if (s.chosen.size() > most) {
+    std::shuffle(s.chosen.begin(), s.chosen.end(), rng);
+    s.chosen.resize(most);
+  }
+  for (auto i : s.chosen) s.centroid += sherd.points[i].cast<double>();
+  s.centroid /= static_cast<double>(s.chosen.size());
+  return s;
+}
 
 struct Line {
   Vec3d point;      // any point on the line
