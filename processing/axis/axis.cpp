@@ -15,14 +15,13 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <numeric>
+#include <limits>
 #include <optional>
 #include <random>
 #include <unordered_map>
-#include <unsupported/Eigen/NonLinearOptimization>
-#include <unsupported/Eigen/NumericalDiff>
 
 #include "core/errors.h"
+#include "processing/axis/fit_common.h"
 
 namespace sherd::axis {
 namespace {
@@ -34,16 +33,7 @@ struct NormalLine {
   Vec3d normal;  // unit
 };
 
-struct Line {
-  Vec3d point;      // any point on the line
-  Vec3d direction;  // unit
-};
-
-// Any unit vector perpendicular to `v` (unit).
-Vec3d any_perpendicular(const Vec3d& v) {
-  const Vec3d helper = std::abs(v.x()) < 0.9 ? Vec3d::UnitX() : Vec3d::UnitY();
-  return v.cross(helper).normalized();
-}
+using detail::Line;
 
 // Points binned into cubic cells of one size; a search within that size visits the 27 cells
 // around the query. Hand-written: sherd_axis links no spatial index (PCL/FLANN would need their
@@ -199,18 +189,13 @@ struct AxisDistanceFunctor {
   const std::vector<NormalLine>* lines = nullptr;
   const std::vector<std::uint32_t>* indices = nullptr;
   Tolerance tolerance{};
-  Line start;
-  Vec3d e1, e2;
+  detail::LineAboutStart line;
 
   int inputs() const { return 4; }
   int values() const { return static_cast<int>(indices->size()); }
 
-  Line line_at(const Eigen::VectorXd& x) const {
-    return {start.point + x[2] * e1 + x[3] * e2,
-            (start.direction + x[0] * e1 + x[1] * e2).normalized()};
-  }
   int operator()(const Eigen::VectorXd& x, Eigen::VectorXd& residuals) const {
-    const Line axis = line_at(x);
+    const Line axis = line.at(x);
     for (std::size_t k = 0; k < indices->size(); ++k) {
       // Inliers were chosen away from parallel; a line that turns parallel during the refinement
       // is capped at the MSAC cap (1) rather than dropped, so the sum stays continuous.
@@ -223,19 +208,11 @@ struct AxisDistanceFunctor {
 
 Line refine(const std::vector<NormalLine>& lines, const std::vector<std::uint32_t>& indices,
             const Line& start, const Tolerance& tolerance) {
-  AxisDistanceFunctor functor;
-  functor.lines = &lines;
-  functor.indices = &indices;
-  functor.tolerance = tolerance;
-  functor.start = start;
-  functor.e1 = any_perpendicular(start.direction);
-  functor.e2 = start.direction.cross(functor.e1);
-  Eigen::NumericalDiff<AxisDistanceFunctor> numeric(functor);
-  Eigen::LevenbergMarquardt<Eigen::NumericalDiff<AxisDistanceFunctor>> solver(numeric);
-  solver.parameters.maxfev = 200;
-  Eigen::VectorXd x = Eigen::VectorXd::Zero(4);
-  solver.minimize(x);
-  return functor.line_at(x);
+  const AxisDistanceFunctor functor{.lines = &lines,
+                                    .indices = &indices,
+                                    .tolerance = tolerance,
+                                    .line = detail::LineAboutStart(start)};
+  return functor.line.at(detail::minimise_line(functor, 200));
 }
 
 struct Scored {
@@ -331,15 +308,7 @@ AxisEstimate estimate_axis(const Cloud& sherd, const Params& params) {
   }
 
   std::mt19937_64 rng(params.seed);
-  std::vector<std::uint32_t> chosen(sherd.size());
-  std::iota(chosen.begin(), chosen.end(), 0u);
-  if (chosen.size() > params.max_lines) {
-    std::shuffle(chosen.begin(), chosen.end(), rng);
-    chosen.resize(params.max_lines);
-  }
-  Vec3d centroid = Vec3d::Zero();
-  for (auto i : chosen) centroid += sherd.points[i].cast<double>();
-  centroid /= static_cast<double>(chosen.size());
+  const auto [chosen, centroid] = detail::subsample(sherd, params.max_lines, rng);
   // All points take part in the normal re-estimation, only the chosen ones become lines.
   std::vector<Vec3d> points(sherd.size()), input_normals(sherd.size());
   for (std::size_t i = 0; i < sherd.size(); ++i) {

@@ -13,13 +13,11 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <numeric>
 #include <random>
 #include <unordered_map>
-#include <unsupported/Eigen/NonLinearOptimization>
-#include <unsupported/Eigen/NumericalDiff>
 
 #include "processing/axis/axis.h"
+#include "processing/axis/fit_common.h"
 
 namespace sherd::axis {
 namespace {
@@ -27,14 +25,7 @@ namespace {
 constexpr double kDegToRad = M_PI / 180.0;
 using Vec2 = Eigen::Vector2d;
 
-struct Axis4 {
-  Vec3d point, direction;
-};
-
-Vec3d perpendicular_to(const Vec3d& v) {
-  const Vec3d helper = std::abs(v.x()) < 0.9 ? Vec3d::UnitX() : Vec3d::UnitY();
-  return v.cross(helper).normalized();
-}
+using detail::Line;
 
 // A point in the half-plane of an axis: (r, h), azimuth, and its normal's (radial, axial) part.
 struct HalfPlanePoint {
@@ -44,8 +35,8 @@ struct HalfPlanePoint {
 };
 
 void to_half_plane(const std::vector<Vec3d>& points, const std::vector<Vec3d>& normals,
-                   const Axis4& axis, std::vector<HalfPlanePoint>& out) {
-  const Vec3d x = perpendicular_to(axis.direction), y = axis.direction.cross(x);
+                   const Line& axis, std::vector<HalfPlanePoint>& out) {
+  const Vec3d x = detail::any_perpendicular(axis.direction), y = axis.direction.cross(x);
   out.resize(points.size());
   for (std::size_t i = 0; i < points.size(); ++i) {
     const Vec3d d = points[i] - axis.point;
@@ -84,18 +75,13 @@ struct ConsistencyFunctor {
   enum { InputsAtCompileTime = Eigen::Dynamic, ValuesAtCompileTime = Eigen::Dynamic };
 
   const Problem* problem = nullptr;
-  Axis4 start;
-  Vec3d e1, e2;
+  detail::LineAboutStart line;
   mutable std::vector<HalfPlanePoint> hp;
 
   int inputs() const { return 4; }
   int values() const { return static_cast<int>(problem->used.size()); }
-  Axis4 axis_at(const Eigen::VectorXd& x) const {
-    return {start.point + x[2] * e1 + x[3] * e2,
-            (start.direction + x[0] * e1 + x[1] * e2).normalized()};
-  }
   int operator()(const Eigen::VectorXd& x, Eigen::VectorXd& residuals) const {
-    to_half_plane(problem->points, problem->normals, axis_at(x), hp);
+    to_half_plane(problem->points, problem->normals, line.at(x), hp);
     for (std::size_t k = 0; k < problem->used.size(); ++k) {
       // Cauchy loss as a residual: its square is c² log(1 + (r/c)²), so that LM minimises the
       // robust cost itself and the weights follow the axis within the round.
@@ -206,22 +192,14 @@ AxisEstimate refine_axis(const Cloud& sherd, const AxisEstimate& start,
   estimate.method = start.method + "+profile-consistency";
 
   Problem problem;
-  std::vector<std::uint32_t> chosen(sherd.size());
-  std::iota(chosen.begin(), chosen.end(), 0u);
   std::mt19937_64 rng(params.seed);
-  if (chosen.size() > params.max_points) {
-    std::shuffle(chosen.begin(), chosen.end(), rng);
-    chosen.resize(params.max_points);
-  }
-  Vec3d centroid = Vec3d::Zero();
-  for (auto i : chosen) centroid += sherd.points[i].cast<double>();
-  centroid /= static_cast<double>(chosen.size());
+  const auto [chosen, centroid] = detail::subsample(sherd, params.max_points, rng);
   for (auto i : chosen) {
     problem.points.push_back(sherd.points[i].cast<double>() - centroid);
     problem.normals.push_back(sherd.normals[i].cast<double>().normalized());
   }
   const Vec3d start_direction = start.direction.normalized();
-  Axis4 axis{start.point - centroid, start_direction};
+  Line axis{start.point - centroid, start_direction};
   axis.point -= axis.point.dot(axis.direction) * axis.direction;
 
   std::vector<HalfPlanePoint> hp;
@@ -265,18 +243,11 @@ AxisEstimate refine_axis(const Cloud& sherd, const AxisEstimate& start,
     // The next round's window across the profile: wide against the spread about this round's axis.
     across_mm = std::max(params.min_across_mm, 6.0 * sigma);
 
-    ConsistencyFunctor functor;
-    functor.problem = &problem;
-    functor.start = axis;
-    functor.e1 = perpendicular_to(axis.direction);
-    functor.e2 = axis.direction.cross(functor.e1);
-    Eigen::NumericalDiff<ConsistencyFunctor> numeric(functor);
-    Eigen::LevenbergMarquardt<Eigen::NumericalDiff<ConsistencyFunctor>> solver(numeric);
-    solver.parameters.maxfev = 100;
-    Eigen::VectorXd x = Eigen::VectorXd::Zero(4);
-    solver.minimize(x);
+    const ConsistencyFunctor functor{
+        .problem = &problem, .line = detail::LineAboutStart(axis), .hp = {}};
+    const Eigen::VectorXd x = detail::minimise_line(functor, 100);
     if (!x.allFinite()) break;
-    axis = functor.axis_at(x);
+    axis = functor.line.at(x);
     axis.point -= axis.point.dot(axis.direction) * axis.direction;
 
     if (round + 1 == params.rounds) {
@@ -287,7 +258,7 @@ AxisEstimate refine_axis(const Cloud& sherd, const AxisEstimate& start,
       Eigen::VectorXd fx(functor.values());
       functor(x, fx);
       Eigen::MatrixXd jacobian(functor.values(), 4);
-      numeric.df(x, jacobian);
+      Eigen::NumericalDiff<ConsistencyFunctor>(functor).df(x, jacobian);
       const double dof = std::max(1, functor.values() - 4);
       sigma_mm = std::sqrt(fx.squaredNorm() / dof);
       covariance = sigma_mm * sigma_mm * (jacobian.transpose() * jacobian).inverse();
@@ -305,10 +276,7 @@ AxisEstimate refine_axis(const Cloud& sherd, const AxisEstimate& start,
           left_out += out;
         }
         if (left_out == 0) continue;
-        Eigen::LevenbergMarquardt<Eigen::NumericalDiff<ConsistencyFunctor>> again(numeric);
-        again.parameters.maxfev = 40;
-        Eigen::VectorXd y = x;
-        again.minimize(y);
+        const Eigen::VectorXd y = detail::minimise_line(functor, 40, x);
         if (y.allFinite()) replicas.push_back(y);
       }
       problem.sqrt_face_weight = weights;

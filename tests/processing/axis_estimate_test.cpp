@@ -12,19 +12,12 @@
 namespace sherd {
 namespace {
 
+using testing::AxisTruth;
+using testing::place;
 using testing::Vec2;
 using testing::WallOfRevolution;
 
-struct Truth {
-  Vec3d point, direction;
-};
-
-Truth place(Cloud& cloud, const Pose& pose) {
-  cloud.transform(pose);
-  return {pose.translation(), pose.linear() * Vec3d::UnitZ()};
-}
-
-void expect_axis_near(const axis::AxisEstimate& a, const Truth& truth) {
+void expect_axis_near(const axis::AxisEstimate& a, const AxisTruth& truth) {
   ASSERT_TRUE(a.found) << a.reason;
   EXPECT_LT(testing::axis_angle_deg(a.direction, truth.direction), 0.5);
   EXPECT_LT(testing::distance_point_to_line(a.point, truth.point, truth.direction), 0.5);
@@ -36,7 +29,7 @@ TEST(AxisEstimate, CylinderWallSixtyDegreesWithFractureFaces) {
   w.outer = [](double s) { return Vec2(60.0, 50.0 * s); };
   w.phi_end_rad = M_PI / 3;
   Cloud cloud = testing::sample_wall(w);
-  const Truth truth = place(cloud, testing::arbitrary_pose());
+  const AxisTruth truth = place(cloud, testing::arbitrary_pose());
   const auto a = axis::estimate_axis(cloud);
   expect_axis_near(a, truth);
   EXPECT_GT(a.inlier_share, 0.7);
@@ -74,7 +67,7 @@ TEST(AxisEstimate, WideShallowWallWithScannerGradeNormals) {
   w.thickness_mm = 5.0;
   w.normal_noise_deg = 5.0;
   Cloud cloud = testing::sample_wall(w);
-  const Truth truth = place(cloud, testing::arbitrary_pose(23.0));
+  const AxisTruth truth = place(cloud, testing::arbitrary_pose(23.0));
   const auto a = axis::estimate_axis(cloud);
   ASSERT_TRUE(a.found) << a.reason;
   EXPECT_LT(testing::axis_angle_deg(a.direction, truth.direction), 0.5);

@@ -8,22 +8,15 @@
 namespace sherd {
 namespace {
 
+using testing::AxisTruth;
+using testing::place;
 using testing::Vec2;
 using testing::WallOfRevolution;
 
-struct Truth {
-  Vec3d point, direction;
-};
-
-Truth place(Cloud& cloud, const Pose& pose) {
-  cloud.transform(pose);
-  return {pose.translation(), pose.linear() * Vec3d::UnitZ()};
-}
-
-double angle_error_deg(const axis::AxisEstimate& a, const Truth& t) {
+double angle_error_deg(const axis::AxisEstimate& a, const AxisTruth& t) {
   return testing::axis_angle_deg(a.direction, t.direction);
 }
-double offset_error_mm(const axis::AxisEstimate& a, const Truth& t) {
+double offset_error_mm(const axis::AxisEstimate& a, const AxisTruth& t) {
   return testing::distance_point_to_line(a.point, t.point, t.direction);
 }
 
@@ -44,7 +37,7 @@ WallOfRevolution cone_wall() {
 
 TEST(AxisRefine, ConvergesFromATiltedShiftedStart) {
   Cloud cloud = testing::sample_wall(cone_wall());
-  const Truth truth = place(cloud, testing::arbitrary_pose());
+  const AxisTruth truth = place(cloud, testing::arbitrary_pose());
   // Start 2° and 2 mm away from the truth.
   axis::AxisEstimate start;
   start.found = true;
@@ -84,7 +77,7 @@ WallOfRevolution cylinder_wall() {
 
 TEST(AxisReference, AutomaticFindsTheAxisOfACylinderWall) {
   Cloud cloud = testing::sample_wall(cylinder_wall());
-  const Truth truth = place(cloud, testing::arbitrary_pose(63.0));
+  const AxisTruth truth = place(cloud, testing::arbitrary_pose(63.0));
   const auto a =
       axis::estimate_axis_reference(cloud, {.variant = axis::ReferenceVariant::Automatic});
   ASSERT_TRUE(a.found) << a.reason;
@@ -94,7 +87,7 @@ TEST(AxisReference, AutomaticFindsTheAxisOfACylinderWall) {
 
 TEST(AxisReference, SemiAutomaticNeedsTheSherdUprightWithin20Degrees) {
   Cloud cloud = testing::sample_wall(cylinder_wall());
-  const Truth truth = place(cloud, testing::arbitrary_pose(15.0));
+  const AxisTruth truth = place(cloud, testing::arbitrary_pose(15.0));
   const auto a =
       axis::estimate_axis_reference(cloud, {.variant = axis::ReferenceVariant::SemiAutomatic});
   ASSERT_TRUE(a.found) << a.reason;

@@ -135,6 +135,15 @@ inline Pose arbitrary_pose(double tilt_deg = 37.0) {
   return pose;
 }
 
+// Where the sherd frame's axis (z through the origin) lies once `cloud` is moved to `pose`.
+struct AxisTruth {
+  Vec3d point, direction;
+};
+inline AxisTruth place(Cloud& cloud, const Pose& pose) {
+  cloud.transform(pose);
+  return {pose.translation(), pose.linear() * Vec3d::UnitZ()};
+}
+
 inline double distance_point_to_line(const Vec3d& p, const Vec3d& line_point, const Vec3d& line_dir) {
   return (p - line_point).cross(line_dir.normalized()).norm();
 }

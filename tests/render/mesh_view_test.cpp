@@ -9,6 +9,7 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -141,19 +142,26 @@ TEST(MeshView, BluePaintOffMirrorMatchesPbrt) {
   expect_shader_matches_pbrt("bluepaint", 10.0, Vec3d(-0.3, 0.5, 1.0));
 }
 
+// The centre pixel, in [0, 1] and not sRGB-encoded, of a 20 mm tile facing the viewer: where the
+// hand-computed shading values below are checked.
+std::array<double, 3> tile_centre(const LafortuneMaterial& material, Lighting lighting) {
+  lighting.srgb_encode = false;
+  OrthoCamera camera;
+  camera.pixel_mm = 0.5;
+  camera.left_mm = camera.bottom_mm = -8.0;
+  camera.width_px = camera.height_px = 32;
+  const RgbaImage image = render_mesh(test::box(20.0, 20.0, 1.0), material, camera, lighting);
+  const std::uint8_t* rgb = image.pixel(16, 16);
+  return {rgb[0] / 255.0, rgb[1] / 255.0, rgb[2] / 255.0};
+}
+
 TEST(MeshView, HeadOnDiffuseIsAlbedoOverPiTimesCosine) {
   // Hand value: a Lambertian (no lobes) 0.6 albedo lit at 60° by E = 2: 0.6/π · cos 60° · 2.
   LafortuneMaterial lambert{"lambert", {0.6, 0.6, 0.6}, {}};
   Lighting lighting;
   lighting.lights = {
       {Vec3d(std::sin(std::numbers::pi / 3), 0, std::cos(std::numbers::pi / 3)), 2.0, false}};
-  lighting.srgb_encode = false;
-  OrthoCamera camera;
-  camera.pixel_mm = 0.5;
-  camera.left_mm = camera.bottom_mm = -8.0;
-  camera.width_px = camera.height_px = 32;
-  const RgbaImage image = render_mesh(test::box(20.0, 20.0, 1.0), lambert, camera, lighting);
-  EXPECT_NEAR(image.pixel(16, 16)[0] / 255.0, 0.190986, 1.0 / 255.0);
+  EXPECT_NEAR(tile_centre(lambert, lighting)[0], 0.190986, 1.0 / 255.0);
 }
 
 TEST(MeshView, KeyLightShadowFallsWhereGeometryPutsIt) {
@@ -224,13 +232,8 @@ TEST(MeshView, NegativeLobeBaseIsClampedToZero) {
       "clamped", {0.4, 0.4, 0.4}, {{{-1.0, -1.0, -1.0}, {-1.0, -1.0, -1.0}, {2.0, 2.0, 2.0}}}};
   Lighting lighting;
   lighting.lights = {{Vec3d::UnitZ(), 1.5, false}};
-  lighting.srgb_encode = false;
-  OrthoCamera camera;
-  camera.pixel_mm = 0.5;
-  camera.left_mm = camera.bottom_mm = -8.0;
-  camera.width_px = camera.height_px = 32;
-  const RgbaImage image = render_mesh(test::box(20.0, 20.0, 1.0), material, camera, lighting);
-  for (int c = 0; c < 3; ++c) EXPECT_NEAR(image.pixel(16, 16)[c] / 255.0, 0.190986, 1.0 / 255.0);
+  for (const double value : tile_centre(material, lighting))
+    EXPECT_NEAR(value, 0.190986, 1.0 / 255.0);
 }
 
 TEST(MeshView, AnyNumberOfLightsAddUp) {
@@ -248,13 +251,7 @@ TEST(MeshView, AnyNumberOfLightsAddUp) {
   }
   lighting.lights.push_back({Vec3d(0.3, 0.0, -1.0), 5.0, false});
   lighting.lights.push_back({Vec3d(0.0, -0.2, -1.0), 5.0, false});
-  lighting.srgb_encode = false;
-  OrthoCamera camera;
-  camera.pixel_mm = 0.5;
-  camera.left_mm = camera.bottom_mm = -8.0;
-  camera.width_px = camera.height_px = 32;
-  const RgbaImage image = render_mesh(test::box(20.0, 20.0, 1.0), lambert, camera, lighting);
-  EXPECT_NEAR(image.pixel(16, 16)[0] / 255.0, 0.219453, 1.0 / 255.0);
+  EXPECT_NEAR(tile_centre(lambert, lighting)[0], 0.219453, 1.0 / 255.0);
 }
 
 TEST(MeshView, TiledRenderEqualsSinglePass) {
