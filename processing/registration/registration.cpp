@@ -532,7 +532,7 @@ struct PairRefinement {
 // are different units; the data say how reliable each is).
 PairRefinement refine_pair(const ViewData& target, const ViewData& source,
                            const Eigen::Isometry3d& initial, double coarse_mm,
-                           const Params& params) {
+                           double max_colour_slide_rad, const Params& params) {
   std::vector<double> distances{coarse_mm};
   while (distances.back() > params.max_correspondence_mm * 1.5)
     distances.push_back(distances.back() / 2);
@@ -554,10 +554,11 @@ PairRefinement refine_pair(const ViewData& target, const ViewData& source,
   result.correction = initial;
   Matrix6d last_jtj = Matrix6d::Zero();
   Matrix6d last_held = Matrix6d::Zero();  // projector onto the held directions
+  bool colour_allowed = params.use_colour && target.coloured() && source.coloured();
   const auto run_stages = [&](std::size_t first_stage) {
     for (std::size_t stage = first_stage; stage < distances.size(); ++stage) {
       const bool last_stage = stage + 1 == distances.size();
-      const bool colour = last_stage && params.use_colour && target.coloured() && source.coloured();
+      const bool colour = last_stage && colour_allowed;
       const CloudT& points = last_stage ? sample : coarse_sample;
       const double tolerance_mm = last_stage ? 1e-3 : 0.01 * distances[stage];
       for (int iteration = 0; iteration < params.max_iterations; ++iteration) {
@@ -656,21 +657,45 @@ PairRefinement refine_pair(const ViewData& target, const ViewData& source,
   // slide is undone — the rotation about the direction's axis put back to the prior's — and the
   // final stage run again: from there the prior holds the direction, or the colour, which sees it
   // only within a few millimetres (its texture's scale), takes it from the prior.
-  if (params.keep_prior_in_degenerate_directions) {
-    bool undone = false;
+  // The rotation about each geometry-silent axis, relative to the priors.
+  const auto silent_slides = [&] {
+    std::vector<std::pair<Vec3d, double>> slides;
     for (const auto& direction : result.geometry_degenerate) {
       if (!direction.name.starts_with("rot")) continue;
       const Vec3d axis = Vector6d::Map(direction.twist.data()).head<3>().normalized();
       const Eigen::Quaterniond q(result.correction.linear());
-      const double slide = 2.0 * std::atan2(q.vec().dot(axis), q.w());
+      slides.emplace_back(axis, 2.0 * std::atan2(q.vec().dot(axis), q.w()));
+    }
+    return slides;
+  };
+  const auto undo_slides = [&] {
+    bool undone = false;
+    for (const auto& [axis, slide] : silent_slides()) {
       if (std::abs(slide) < 1e-7) continue;
       const Vec3d centre = result.correction * c;
       result.correction = Eigen::Translation3d(centre) * Eigen::AngleAxisd(-slide, axis) *
                           Eigen::Translation3d(-centre) * result.correction;
       undone = true;
     }
+    return undone;
+  };
+  if (params.keep_prior_in_degenerate_directions) {
+    const bool undone = undo_slides();
     if (undone) result.converged = run_stages(distances.size() - 1);
     if (!result.converged) return result;
+    // A texture repeats, and its term converges to the nearest match: one further than the priors
+    // plausibly allow is a false match. Then the colour is not used for this pair.
+    if (result.used_colour) {
+      bool implausible = false;
+      for (const auto& [axis, slide] : silent_slides())
+        implausible = implausible || std::abs(slide) > max_colour_slide_rad;
+      if (implausible) {
+        colour_allowed = false;
+        undo_slides();
+        result.converged = run_stages(distances.size() - 1);
+        if (!result.converged) return result;
+      }
+    }
   }
   // The pair's information about the source's pose: its normal equations, with the directions it
   // could not see (held: neither the geometry nor the colour) removed — there the edge knows
@@ -992,6 +1017,12 @@ Result register_views(const std::vector<ViewInput>& views,
   for (const auto& c : candidates) ++candidate_edges[c.target], ++candidate_edges[c.source];
   result.edges.resize(candidates.size());
   std::vector<GraphEdge> graph;
+  // How far a pair's relative rotation about a silent axis may plausibly be from the priors': three
+  // standard deviations of the difference of two views' prior rotations.
+  const double max_colour_slide_rad =
+      3.0 * std::sqrt(2.0) *
+      std::hypot(prior_uncertainty.angle_sd_deg, prior_uncertainty.tilt_sd_deg) * std::numbers::pi /
+      180.0;
   const auto refine_edge = [&](std::size_t k, const Eigen::Isometry3d& initial, double coarse_mm) {
     const Candidate& c = candidates[k];
     EdgeResult& edge = result.edges[k];
@@ -1002,7 +1033,8 @@ Result register_views(const std::vector<ViewInput>& views,
     edge.overlap_at_prior = c.overlap;
     const ViewData& target = data[c.target];
     const ViewData& source = data[c.source];
-    const PairRefinement pair = refine_pair(target, source, initial, coarse_mm, params);
+    const PairRefinement pair =
+        refine_pair(target, source, initial, coarse_mm, max_colour_slide_rad, params);
     edge.iterations = pair.iterations;
     edge.used_colour = pair.used_colour;
     edge.degenerate = pair.degenerate;

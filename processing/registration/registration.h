@@ -42,9 +42,11 @@ struct Params {
   // Add a photometric term where both views of a pair have colour (Park, Zhou & Koltun, ICCV
   // 2017), restricted to the directions the geometry cannot constrain: the clay's texture can fix
   // the rotation about a pot's axis that its shape cannot, and leaves alone what the shape sees.
-  // Off by default: measured (bench/registration, 3 seeds, textured simulated clay) it brings the
-  // vessels' median rotation error from the prior's 0.31° to 0.096°, but on one vessel of three it
-  // walked 2.4° along the symmetry (p95 2.3°), and frames went from ~0.003° to 0.006° (p95 0.036°).
+  // A pair whose colour moves it about a silent axis further than three standard deviations of
+  // the priors' difference is a false texture match: that pair is refined without colour.
+  // Off by default: measured (bench_registration --colour, 3 seeds, textured simulated clay) it
+  // brings the vessels' median rotation error from the prior's 0.31° to 0.11°, but its 95th
+  // percentile is 0.76° (the prior's 0.53°), and frames go from 0.0028° to 0.0051° (p95 0.034°).
   bool use_colour = false;
   // The colour sees a direction the geometry cannot when its equations alone pin the view there
   // to this standard deviation (a rotation's as the displacement at the view's RMS radius); else
