@@ -54,8 +54,7 @@ void check_input(const std::vector<ViewInput>& views, const PriorUncertainty& pr
     throw InputError(
         "registration: parameters out of range (voxel, distances, limits and iterations must be "
         "positive, as must colour_max_sd_mm; min_edge_overlap in (0, 1], "
-        "degenerate_eigenvalue_ratio "
-        "in [0, 1)); fix the "
+        "degenerate_eigenvalue_ratio in [0, 1)); fix the "
         "registration parameters");
   }
   if (!(prior.angle_sd_deg > 0) || !(prior.tilt_sd_deg > 0) || !(prior.translation_sd_mm > 0) ||
@@ -253,6 +252,7 @@ struct NormalEquations {
 struct Degeneracy {
   Eigen::Matrix<double, 6, Eigen::Dynamic> basis{6, 0};
   std::vector<DegenerateDirection> named;
+  double largest_eigenvalue = 0.0;  // of the JᵀJ it was found in
 
   Matrix6d projector() const { return basis * basis.transpose(); }
 };
@@ -261,6 +261,7 @@ Degeneracy find_degeneracy(const Matrix6d& jtj, const Params& params) {
   const Eigen::SelfAdjointEigenSolver<Matrix6d> eigen(jtj);
   const double largest = eigen.eigenvalues()(5);
   Degeneracy degeneracy;
+  degeneracy.largest_eigenvalue = largest;
   if (!(largest > 0)) return degeneracy;
   for (int i = 0; i < 6; ++i) {
     if (eigen.eigenvalues()(i) > params.degenerate_eigenvalue_ratio * largest) continue;
@@ -272,8 +273,8 @@ Degeneracy find_degeneracy(const Matrix6d& jtj, const Params& params) {
 }
 
 // The Gauss-Newton step of JᵀJ x = −Jᵀr that does not move the view in what names each `held`
-// direction: for a "rot_*" one, the rotation about that
-// direction's rotation axis; for a "trans_*" one, the translation along it. The view keeps the
+// direction: for a "rot_*" one, the rotation about that direction's rotation axis; for a "trans_*"
+// one, the translation along it. The view keeps the
 // prior there exactly, and the constraint is metric-free: constraining the whole eigenvector
 // instead (truncating the eigen-solution, Zhang, Kaess & Singh, ICRA 2016) keeps a blend of
 // rotation and translation that depends on the scaling, so part of a prior's translation error
@@ -327,9 +328,8 @@ ColourSplit split_by_colour(const Degeneracy& silent, const Matrix6d& photometri
   if (split.seen.cols() == 0) {
     split.held = silent;
   } else if (split.held.basis.cols() > 0) {
-    const Eigen::SelfAdjointEigenSolver<Matrix6d> geometric(geometric_jtj);
-    split.held.named =
-        named_directions(split.held.basis, geometric_jtj, geometric.eigenvalues()(5));
+    split.held.largest_eigenvalue = silent.largest_eigenvalue;
+    split.held.named = named_directions(split.held.basis, geometric_jtj, silent.largest_eigenvalue);
   }
   return split;
 }
