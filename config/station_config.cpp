@@ -364,6 +364,7 @@ StationConfig load_station_config(const fs::path& file) {
   segmentation.read("volume_radius_mm", seg.volume_radius_mm, above(0));
   segmentation.read("volume_min_z_mm", seg.volume_min_z_mm, any_finite());
   segmentation.read("volume_max_z_mm", seg.volume_max_z_mm, above(seg.volume_min_z_mm));
+  segmentation.read("contact_erosion_mm", seg.contact_erosion_mm, from_to(0, 50));
   segmentation.reject_unknown_keys();
 
   auto& rs = config.render;

@@ -105,6 +105,7 @@ struct SegmentationSettings {
   double volume_radius_mm = 160.0;       // scanning volume: cylinder about the turntable axis
   double volume_min_z_mm = 0.5;          // just above the plate
   double volume_max_z_mm = 400.0;
+  double contact_erosion_mm = 0.0;       // split touching sherds (trays seen from above); 0: off
 };
 
 struct RenderSettings {

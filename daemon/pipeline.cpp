@@ -86,6 +86,7 @@ segmentation::Params segmentation_params(const config::SegmentationSettings& s) 
   p.volume_radius_mm = s.volume_radius_mm;
   p.volume_min_z_mm = s.volume_min_z_mm;
   p.volume_max_z_mm = s.volume_max_z_mm;
+  p.contact_erosion_mm = s.contact_erosion_mm;
   return p;
 }
 
