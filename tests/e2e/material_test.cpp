@@ -1,7 +1,8 @@
 // The plates' material chosen per scan and per sherd (`--material`, `--sherd-material ID=NAME`):
 // the colour of each plate's shaded view follows the preset asked for (the diffuse colours of
 // ../shared/data/lafortune-pbrt.md: blue paint is blue, skin is red over blue), and an unknown
-// preset is one message before anything is scanned or processed.
+// preset is one message before anything is scanned or processed. Through `sherdctl process` and
+// through sherdd (`sherdctl scan` on the simulated station).
 #include "harness.h"
 
 #include "db/store.h"
@@ -12,6 +13,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <sstream>
 
 namespace sherd::testing {
 namespace {
@@ -109,6 +111,35 @@ TEST(Materials, UnknownPresetIsOneMessageBeforeProcessing) {
   for (const char* named : {"marble", "s01", "clay", "skin", "materials.xml"})
     EXPECT_NE(result.err.find(named), std::string::npos) << named << " not in: " << result.err;
   EXPECT_FALSE(std::filesystem::exists(out / "sherdscan.db")) << "processing began";
+}
+
+TEST(Materials, SherddScanTakesAMaterialPerScanAndAnotherForOneSherd) {
+  // Felt is a dark neutral grey (diffuse 0.026 in every channel), blue paint is blue.
+  TempDir dir;
+  const auto config = write_config(dir, {{"turntable.time_scale", "0.05"}});
+  Daemon daemon(config, dir.path() / "data");
+  daemon.start();
+  const auto scan = run({binary("sherdctl").string(), "--socket", daemon.socket().string(), "scan",
+                         "--material", "felt", "--sherd-material", "s01=bluepaint"});
+  ASSERT_EQ(scan.exit_code, 0) << scan.err << daemon.log();
+  int plates = 0;
+  std::istringstream lines(scan.out);
+  for (std::string plate; std::getline(lines, plate);) {
+    if (plate.empty()) continue;
+    ++plates;
+    const std::string sherd_id = std::filesystem::path(plate).parent_path().filename();
+    const auto [blue, red] = blue_and_red_pixels(plate);
+    if (sherd_id == "s01")
+      EXPECT_GT(blue, 1000) << sherd_id << " (blue paint)";
+    else
+      EXPECT_EQ(blue + red, 0) << sherd_id << " (felt) blue " << blue << " red " << red;
+  }
+  EXPECT_GE(plates, 2) << scan.out;
+  // Kept with the scan, for a resume after a restart.
+  const auto scans = db::Store(dir.path() / "data" / "sherdscan.db").scans();
+  ASSERT_EQ(scans.size(), 1u);
+  EXPECT_EQ(scans[0].settings["material"], "felt");
+  EXPECT_EQ(scans[0].settings["sherd_materials"]["s01"], "bluepaint");
 }
 
 TEST(Materials, SherddRefusesAScanWithAnUnknownPresetAndCreatesNoScan) {
