@@ -278,7 +278,8 @@ TEST(Plate, ExteriorViewStartsAtTheFacingMeridian) {
 TEST(Plate, CompleteVesselShowsItsWholeExteriorHalfBesideTheSection) {
   // A whole 360° vessel: the exterior half is shaded from the axis to the outline at every
   // height, the other half is the section at u ∈ [45, 50] and paper inside it.
-  const WallSherd vessel = wall_sherd(360.0);
+  WallSherd vessel = wall_sherd(360.0);
+  vessel.analysis.measurements.volume_ml = std::numbers::pi * 45.0 * 45.0 * 40.0 / 1000.0;
   const int dpi = 300;
   const double pixel = 25.4 / dpi;
   const PlateFiles files = render_plate({"scan-1", "vessel-1", &vessel.mesh, &vessel.analysis},
