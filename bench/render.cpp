@@ -3,7 +3,7 @@
 // is its own): "view", the stages of one full-vessel side view in one image (context, upload
 // incl. shadow map, draw, read-back, PNG encode); "plate", the whole plate composed in bands.
 // One JSON object per line.
-//   bench_render [--dpi 300 --dpi 600 --dpi 1200]
+//   bench_render [--dpi 300 --dpi 600 --dpi 1200] [--case view --case plate]
 #include "processing/profile/profile.h"
 #include "render/egl_context.h"
 #include "render/materials.h"
@@ -11,11 +11,11 @@
 #include "render/plate.h"
 #include "render/png_writer.h"
 
-#include <CLI/CLI.hpp>
-#include <nlohmann/json.hpp>
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
 
 #include <chrono>
 #include <cmath>
@@ -131,7 +131,6 @@ void run_case(int dpi, bool plate, const std::filesystem::path& out_dir) {
                                 {"context_s", context_s},
                                 {"plate_s", seconds_since(start)},
                                 {"process_cpu_s", cpu_s()},
-                                {"process_cpu_s", cpu_s()},
                                 {"peak_rss_mb", peak_rss_mb()}}
                      .dump()
               << std::endl;
@@ -202,11 +201,16 @@ int main(int argc, char** argv) {
   CLI::App app{"bench_render: plate rendering of a 1 M triangle vessel, per stage and dpi"};
   std::vector<int> dpis{300, 600, 1200};
   app.add_option("--dpi", dpis, "resolutions (the first is the baseline)")->capture_default_str();
+  std::vector<std::string> cases{"view", "plate"};
+  app.add_option("--case", cases, "view: one full side view by stages; plate: the whole plate")
+      ->check(CLI::IsMember({"view", "plate"}))
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   const auto out_dir = std::filesystem::temp_directory_path() / "sherd_bench_render";
   std::filesystem::create_directories(out_dir);
   for (int dpi : dpis)
-    for (const bool plate : {false, true}) {
+    for (const std::string& name : cases) {
+      const bool plate = name == "plate";
       // A child per case: its peak RSS is its own, and the parent never holds a GL context.
       const pid_t child = fork();
       if (child == 0) {

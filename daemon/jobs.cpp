@@ -143,12 +143,14 @@ std::pair<std::string, std::shared_ptr<Subscription>> JobRunner::submit(const st
   return {scan_id, subscription};
 }
 
-std::pair<std::string, std::shared_ptr<Subscription>> JobRunner::submit_scan() {
+std::pair<std::string, std::shared_ptr<Subscription>> JobRunner::submit_scan(const MaterialChoice& materials) {
+  check_materials(materials, config_.render);
   return submit("station", config_.scan.views,
                 {{"views", config_.scan.views},
                  {"start_angle_deg", config_.scan.start_angle_deg},
                  {"dpi", config_.render.dpi},
-                 {"material", config_.render.material},
+                 {"material", materials.scan.empty() ? config_.render.material : materials.scan},
+                 {"sherd_materials", materials.per_sherd},
                  {"config", config_.source.string()}});
 }
 
@@ -378,7 +380,9 @@ void JobRunner::process(const std::string& scan_id) {
       scanner_to_world = station_.scanner_to_world;
       prior = station_.prior_uncertainty;
     }
-    Pipeline pipeline(config_, *store_, [this, scan_id](const nlohmann::json& e) { publish(scan_id, e); });
+    const auto scan = store_->scan(scan_id);
+    Pipeline pipeline(config_, *store_, [this, scan_id](const nlohmann::json& e) { publish(scan_id, e); },
+                      scan ? MaterialChoice::from_json(scan->settings) : MaterialChoice{});
     const auto outcome = pipeline.process_views(scan_id, views, scanner_to_world, prior);
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     store_->add_stage(scan_id, "processing", ms, {{"sherds", outcome.sherds.size()}});

@@ -10,6 +10,7 @@
 #pragma once
 
 #include "config/station_config.h"
+#include "daemon/pipeline.h"
 #include "daemon/station.h"
 #include "db/store.h"
 
@@ -55,7 +56,9 @@ class JobRunner {
   void stop();
 
   // Creates a scan and queues its acquisition; the returned subscription sees all its events.
-  std::pair<std::string, std::shared_ptr<Subscription>> submit_scan();
+  // `materials` is kept in the scan's settings; an unknown preset throws sherd::InputError before
+  // the scan exists (a typo costs no acquisition).
+  std::pair<std::string, std::shared_ptr<Subscription>> submit_scan(const MaterialChoice& materials = {});
   std::shared_ptr<Subscription> subscribe(const std::string& scan_id);
   // Queues a turntable calibration (a job id like a scan's; events as for a scan, the finished
   // event carries {"calibration": {…}} with the figures).

@@ -9,6 +9,7 @@
 #include "processing/profile/profile.h"
 #include "processing/registration/registration.h"
 #include "processing/segmentation/overview.h"
+#include "render/materials.h"
 #include "render/plate.h"
 
 #include <fmt/format.h>
@@ -74,6 +75,50 @@ nlohmann::json edge_figures(const registration::EdgeResult& e) {
 
 }  // namespace
 
+const std::string& MaterialChoice::for_sherd(const std::string& sherd_id,
+                                             const config::RenderSettings& station) const {
+  if (const auto it = per_sherd.find(sherd_id); it != per_sherd.end()) return it->second;
+  return scan.empty() ? station.material : scan;
+}
+
+nlohmann::json MaterialChoice::to_json() const {
+  return {{"material", scan}, {"sherd_materials", per_sherd}};
+}
+
+MaterialChoice MaterialChoice::from_json(const nlohmann::json& doc) {
+  MaterialChoice choice;
+  if (const auto it = doc.find("material"); it != doc.end() && !it->is_null()) {
+    if (!it->is_string())
+      throw InputError("scan request: \"material\" must be a preset name (a string)");
+    choice.scan = it->get<std::string>();
+  }
+  if (const auto it = doc.find("sherd_materials"); it != doc.end() && !it->is_null()) {
+    if (!it->is_object())
+      throw InputError("scan request: \"sherd_materials\" must map sherd ids to preset names");
+    for (const auto& [sherd_id, preset] : it->items()) {
+      if (!preset.is_string())
+        throw InputError(fmt::format(
+            "scan request: \"sherd_materials\".{} must be a preset name (a string)", sherd_id));
+      choice.per_sherd[sherd_id] = preset.get<std::string>();
+    }
+  }
+  return choice;
+}
+
+void check_materials(const MaterialChoice& choice, const config::RenderSettings& station) {
+  const auto check = [&](const std::string& preset, const std::string& asked_by) {
+    try {
+      render::find_material(station.materials_file, preset);
+    } catch (const InputError& e) {
+      throw InputError(fmt::format("{} (asked for by {}); no scan was started", e.what(), asked_by));
+    }
+  };
+  check(choice.scan.empty() ? station.material : choice.scan,
+        choice.scan.empty() ? "[render] material" : "--material");
+  for (const auto& [sherd_id, preset] : choice.per_sherd)
+    check(preset, fmt::format("--sherd-material {}={}", sherd_id, preset));
+}
+
 segmentation::Params segmentation_params(const config::SegmentationSettings& s) {
   segmentation::Params p;
   p.background = s.background == "white"  ? segmentation::BackgroundColour::White
@@ -90,8 +135,12 @@ segmentation::Params segmentation_params(const config::SegmentationSettings& s) 
   return p;
 }
 
-Pipeline::Pipeline(const config::StationConfig& config, db::Store& store, EventFn on_event)
-    : config_(config), store_(store), on_event_(std::move(on_event)) {}
+Pipeline::Pipeline(const config::StationConfig& config, db::Store& store, EventFn on_event,
+                   MaterialChoice materials)
+    : config_(config),
+      store_(store),
+      on_event_(std::move(on_event)),
+      materials_(std::move(materials)) {}
 
 void Pipeline::emit(const nlohmann::json& event) const {
   if (on_event_) on_event_(event);
@@ -282,10 +331,13 @@ SherdOutcome Pipeline::analyse_sherd(const std::string& scan_id, const segmentat
   start = Clock::now();
   io::write_ply(out.dir / "sherd.ply", part.mesh);
   render::PlateInput plate_input{scan_id, part.id, &part.mesh, analysis ? &*analysis : nullptr};
-  const auto files = render::render_plate(plate_input, plate_settings(config_.render), out.dir);
+  render::PlateSettings settings = plate_settings(config_.render);
+  settings.material = materials_.for_sherd(part.id, config_.render);
+  const auto files = render::render_plate(plate_input, settings, out.dir);
   out.plate = files.png;
   record_stage(scan_id, "plate:" + part.id, ms_since(start),
-               {{"width_px", files.width_px}, {"height_px", files.height_px}, {"dpi", config_.render.dpi}});
+               {{"width_px", files.width_px}, {"height_px", files.height_px}, {"dpi", config_.render.dpi},
+                {"material", settings.material}});
 
   auto doc = sherd_document(scan_id, part.id, part.mesh, axis, analysis ? &*analysis : nullptr);
   if (axis.found && !analysis) doc["profile_error"] = out.reason;

@@ -13,6 +13,7 @@
 
 #include <filesystem>
 #include <functional>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -41,11 +42,31 @@ struct ScanOutcome {
   std::vector<SherdOutcome> sherds;
 };
 
+// The material preset of each plate: the scan's (empty: the station's `[render] material`),
+// overridden per sherd id ("s01"…). Chosen per scan request (`sherdctl scan|process --material
+// NAME --sherd-material ID=NAME`) and kept in the scan's settings, so a resumed scan keeps it.
+struct MaterialChoice {
+  std::string scan;
+  std::map<std::string, std::string> per_sherd;
+
+  const std::string& for_sherd(const std::string& sherd_id,
+                               const config::RenderSettings& station) const;
+  nlohmann::json to_json() const;  // {"material": …, "sherd_materials": {id: preset}}
+  // From a request or a scan's settings (absent keys: the station's choice). Throws
+  // sherd::InputError naming the key when it is not a string / a map of strings.
+  static MaterialChoice from_json(const nlohmann::json& doc);
+};
+
+// Throws sherd::InputError naming the unknown preset, who asked for it and the presets the
+// materials file has (or what is wrong with the file): called before a scan starts.
+void check_materials(const MaterialChoice& choice, const config::RenderSettings& station);
+
 segmentation::Params segmentation_params(const config::SegmentationSettings& settings);
 
 class Pipeline {
  public:
-  Pipeline(const config::StationConfig& config, db::Store& store, EventFn on_event = {});
+  Pipeline(const config::StationConfig& config, db::Store& store, EventFn on_event = {},
+           MaterialChoice materials = {});
 
   // Views of the station, read back from their raw files: placed by the turntable prior with the
   // calibrated scanner pose, refined, then segmented and analysed.
@@ -69,6 +90,7 @@ class Pipeline {
   const config::StationConfig& config_;
   db::Store& store_;
   EventFn on_event_;
+  MaterialChoice materials_;
 };
 
 }  // namespace sherd::station

@@ -1,6 +1,7 @@
 // The control API between sherdctl and sherdd: one JSON object per line over a Unix domain
 // socket. Requests: {"cmd": "scan" | "calibrate" | "status" | "jobs" | "show" | "follow", …}
-// ("calibrate" with {"kind": "turntable"}). Replies: one object {"ok": true, …} or {"ok": false,
+// ("calibrate" with {"kind": "turntable"}; "scan" optionally with {"material": preset,
+// "sherd_materials": {sherd_id: preset}}). Replies: one object {"ok": true, …} or {"ok": false,
 // "error": "…"}; "scan", "calibrate" and "follow" then stream the job's events until
 // {"event": "finished", …} (a calibration's carries {"calibration": {…}}, its figures).
 #pragma once

@@ -118,7 +118,7 @@ void Server::serve(int fd) {
       while (auto request = socket.receive()) {
         const std::string cmd = request->value("cmd", "");
         if (cmd == "scan") {
-          auto [scan_id, subscription] = runner_.submit_scan();
+          auto [scan_id, subscription] = runner_.submit_scan(MaterialChoice::from_json(*request));
           socket.send({{"ok", true}, {"scan_id", scan_id}});
           stream(socket, subscription);
           break;

@@ -84,9 +84,25 @@ int follow_events(JsonLineSocket& socket, const std::string& scan_id, bool as_js
   return 1;
 }
 
-int cmd_scan(const Options& options) {
+// --material NAME and --sherd-material ID=NAME (repeatable) as a MaterialChoice.
+sherd::station::MaterialChoice material_choice(const std::string& material,
+                                               const std::vector<std::string>& sherd_materials) {
+  sherd::station::MaterialChoice choice{material, {}};
+  for (const auto& pair : sherd_materials) {
+    const auto equals = pair.find('=');
+    if (equals == std::string::npos || equals == 0 || equals + 1 == pair.size())
+      throw sherd::InputError(fmt::format(
+          "--sherd-material '{}': give SHERD_ID=PRESET, e.g. --sherd-material s02=felt", pair));
+    choice.per_sherd[pair.substr(0, equals)] = pair.substr(equals + 1);
+  }
+  return choice;
+}
+
+int cmd_scan(const Options& options, const sherd::station::MaterialChoice& materials) {
   auto socket = sherd::station::connect_unix(socket_path(options));
-  socket.send({{"cmd", "scan"}});
+  json request = materials.to_json();
+  request["cmd"] = "scan";
+  socket.send(request);
   auto reply = socket.receive();
   if (!reply || !reply->value("ok", false)) {
     throw sherd::InputError(reply ? reply->value("error", "scan refused") : "sherdd closed the connection");
@@ -293,8 +309,10 @@ int cmd_show(const Options& options, const std::string& scan_id, bool wait) {
 }
 
 int cmd_process(const Options& options, const std::vector<std::string>& files, const std::string& out_dir,
-                const std::string& units, const std::string& background) {
+                const std::string& units, const std::string& background,
+                const sherd::station::MaterialChoice& materials) {
   auto config = sherd::config::load_station_config(options.config_file);
+  sherd::station::check_materials(materials, config.render);
   config.paths.output_dir = std::filesystem::absolute(out_dir);
   std::filesystem::create_directories(config.paths.output_dir);
   auto store = std::make_shared<sherd::db::Store>(config.paths.output_dir / "sherdscan.db");
@@ -315,17 +333,21 @@ int cmd_process(const Options& options, const std::vector<std::string>& files, c
 
   int failures = 0;
   for (const auto& file : files) {
-    const auto scan_id = store->create_scan("process", 0, {{"file", file}, {"units", units}, {"background", background}},
-                                            config.paths.output_dir.string());
+    json settings = materials.to_json();
+    settings.update({{"file", file}, {"units", units}, {"background", background}});
+    const auto scan_id = store->create_scan("process", 0, settings, config.paths.output_dir.string());
     sherd::db::ScanLogScope scope(scan_id);
     try {
       store->set_scan_state(scan_id, sherd::db::ScanState::Processing);
       const auto model = sherd::io::read_model(file, file_units);
-      sherd::station::Pipeline pipeline(config, *store, [](const json& e) {
-        if (e.value("event", "") == "sherd" && !e.value("axis_found", false)) {
-          std::cerr << fmt::format("  sherd {}: no axis: {}\n", e.value("sherd_id", ""), e.value("reason", ""));
-        }
-      });
+      sherd::station::Pipeline pipeline(
+          config, *store,
+          [](const json& e) {
+            if (e.value("event", "") == "sherd" && !e.value("axis_found", false)) {
+              std::cerr << fmt::format("  sherd {}: no axis: {}\n", e.value("sherd_id", ""), e.value("reason", ""));
+            }
+          },
+          materials);
       const auto outcome = pipeline.process_model(scan_id, model, params, file);
       store->set_scan_state(scan_id, sherd::db::ScanState::Done);
       std::cerr << fmt::format("{}: {} sherd(s) → {}\n", file, outcome.sherds.size(), outcome.dir.string());
@@ -351,6 +373,17 @@ int main(int argc, char** argv) {
   app.add_flag("--json", options.as_json, "print machine-readable JSON instead of text");
 
   auto* scan = app.add_subcommand("scan", "press scan: acquire and process one scan; prints the plates' paths");
+  // The plates' material, per scan and per sherd (both for scan and process).
+  std::string material;
+  std::vector<std::string> sherd_materials;
+  const auto add_material_options = [&](CLI::App* command) {
+    command->add_option("--material", material,
+                        "material preset of the plates (a <material> in the materials file; default: "
+                        "[render] material)");
+    command->add_option("--sherd-material", sherd_materials,
+                        "SHERD_ID=PRESET: another preset for one sherd (s01, s02…; repeatable)");
+  };
+  add_material_options(scan);
   app.add_subcommand("status", "state of the station: devices, job in hand, queues");
   int limit = 20;
   auto* jobs = app.add_subcommand("jobs", "recent scans and their states");
@@ -402,17 +435,19 @@ int main(int argc, char** argv) {
   process->add_option("--units", units, "units of the files")->check(CLI::IsMember({"mm", "m"}))->capture_default_str();
   process->add_option("--background", background, "colour of a background to remove")
       ->check(CLI::IsMember({"none", "black", "white"}))->capture_default_str();
+  add_material_options(process);
   CLI11_PARSE(app, argc, argv);
 
   try {
-    if (*scan) return cmd_scan(options);
+    if (*scan) return cmd_scan(options, material_choice(material, sherd_materials));
     if (*calibrate && calibration_kind == "scanner" && !scanner_args.captures.empty())
       return cmd_calibrate_scanner(options, scanner_args);
     if (*calibrate) return cmd_calibrate(options, calibration_kind);
     if (app.got_subcommand("status")) return cmd_status(options);
     if (*jobs) return cmd_jobs(options, limit);
     if (*show) return cmd_show(options, scan_id, wait);
-    if (*process) return cmd_process(options, files, out_dir, units, background);
+    if (*process)
+      return cmd_process(options, files, out_dir, units, background, material_choice(material, sherd_materials));
   } catch (const std::exception& e) {
     std::cerr << "sherdctl: " << e.what() << '\n';
     return 2;

@@ -323,6 +323,7 @@ std::vector<std::string> measurement_lines(const PlateInput& input, const PlateS
   if (m.rim_percent) sizes += fmt::format("rim {:.1f} %   ", *m.rim_percent);
   if (m.base_diameter_mm) sizes += fmt::format("base Ø {:.1f} mm   ", *m.base_diameter_mm);
   sizes += fmt::format("max Ø {:.1f} mm   height {:.1f} mm", m.max_diameter_mm, m.height_mm);
+  if (m.volume_ml) sizes += fmt::format("   capacity {:.0f} ml", *m.volume_ml);  // complete vessels
   return {header_line(input), sizes,
           fmt::format("wall {:.1f}–{:.1f} mm (mean {:.1f})", m.wall_thickness_mm.min,
                       m.wall_thickness_mm.max, m.wall_thickness_mm.mean),

@@ -54,6 +54,9 @@ PngStream::PngStream(const std::filesystem::path& file, int width, int height, i
     // Plates are mostly white: zlib's fastest level compresses them nearly as well as its
     // default and several times faster (bench/render's encode stage).
     png_set_compression_level(png, 1);
+    // Sub and Up only: files as small as with libpng's five-way adaptive choice (Paeth and
+    // Average buy nothing on paper-white and smooth shading) at about 2/3 of the encode time.
+    png_set_filter(png, PNG_FILTER_TYPE_BASE, PNG_FILTER_SUB | PNG_FILTER_UP);
     png_write_info(png, info);
     if (grey && std::endian::native == std::endian::little) png_set_swap(png);
   });

@@ -13,6 +13,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <numbers>
 #include <sstream>
 
@@ -223,6 +224,36 @@ TEST(Plate, BritishConventionMirrorsTheSection) {
   expect_section_extent(read_svg(files.svg), -50.0, -45.0);
 }
 
+// Where the black section of a wall sherd of outer radius 50 and inner 45 lies on a plate: the
+// rows it spans (the rightmost black run 5 mm plus the pen wide) and, from its centre
+// (u = 47.5 mm), the column of the axis.
+struct SectionOnPlate {
+  int rows = 0, middle_row = 0;
+  double axis_column = 0.0;
+};
+
+SectionOnPlate find_section(const Png& png, double pixel) {
+  SectionOnPlate found;
+  int row_sum = 0, section_first = -1, section_last = -1;
+  for (int j = 0; j < png.height; ++j) {
+    int last = png.width - 1;
+    while (last >= 0 && !png.black(last, j)) --last;
+    int first = last;
+    while (first > 0 && png.black(first - 1, j)) --first;
+    const double run_mm = (last - first + 1) * pixel;
+    if (last >= 0 && run_mm > 5.0 && run_mm < 5.8) {
+      ++found.rows;
+      row_sum += j;
+      section_first = first;
+      section_last = last;
+    }
+  }
+  if (found.rows == 0) return found;
+  found.middle_row = row_sum / found.rows;
+  found.axis_column = (section_first + section_last + 1) / 2.0 - 47.5 / pixel;
+  return found;
+}
+
 TEST(Plate, ExteriorViewStartsAtTheFacingMeridian) {
   // A 60° arc turned to start at the meridian facing the viewer and extend to the left spans
   // u ∈ [−50 sin 60°, 0] = [−43.3, 0]; the section (black) spans u ∈ [45, 50].
@@ -232,32 +263,93 @@ TEST(Plate, ExteriorViewStartsAtTheFacingMeridian) {
   const PlateFiles files = render_plate({"scan-1", "sherd-4", &sherd.mesh, &sherd.analysis},
                                         settings_at(dpi), fresh_dir("arc"));
   const Png png = read_png(files.png);
-  // The section is the rightmost black in the rows it spans: a run 5 mm plus the pen wide. Its
-  // centre (u = 47.5 mm) locates the axis.
-  int rows_found = 0, row_sum = 0, section_first = -1, section_last = -1;
-  for (int j = 0; j < png.height; ++j) {
-    int last = png.width - 1;
-    while (last >= 0 && !png.black(last, j)) --last;
-    int first = last;
-    while (first > 0 && png.black(first - 1, j)) --first;
-    const double run_mm = (last - first + 1) * pixel;
-    if (last >= 0 && run_mm > 5.0 && run_mm < 5.8) {
-      ++rows_found;
-      row_sum += j;
-      section_first = first;
-      section_last = last;
-    }
-  }
-  ASSERT_NEAR(rows_found * pixel, 40.0, 1.0) << "the section is 40 mm tall";
-  const int row = row_sum / rows_found;
-  const double axis_column = (section_first + section_last + 1) / 2.0 - 47.5 / pixel;
-  const auto column = [&](double u) { return static_cast<int>(axis_column + u / pixel); };
+  const SectionOnPlate section = find_section(png, pixel);
+  ASSERT_NEAR(section.rows * pixel, 40.0, 1.0) << "the section is 40 mm tall";
+  const int row = section.middle_row;
+  const auto column = [&](double u) { return static_cast<int>(section.axis_column + u / pixel); };
   EXPECT_FALSE(png.white(column(-40.0), row)) << "inside the rendered arc";
   EXPECT_FALSE(png.white(column(-20.0), row));
   EXPECT_FALSE(png.black(column(-20.0), row)) << "shaded, not black";
   EXPECT_TRUE(png.white(column(-46.5), row)) << "between the arc's end and the outline";
   EXPECT_TRUE(png.white(column(20.0), row)) << "between the axis and the section";
   EXPECT_FALSE(png.white(column(-50.0), row)) << "the vessel outline";
+}
+
+TEST(Plate, CompleteVesselShowsItsWholeExteriorHalfBesideTheSection) {
+  // A whole 360° vessel: the exterior half is shaded from the axis to the outline at every
+  // height, the other half is the section at u ∈ [45, 50] and paper inside it.
+  WallSherd vessel = wall_sherd(360.0);
+  vessel.analysis.measurements.volume_ml = std::numbers::pi * 45.0 * 45.0 * 40.0 / 1000.0;
+  const int dpi = 300;
+  const double pixel = 25.4 / dpi;
+  const PlateFiles files = render_plate({"scan-1", "vessel-1", &vessel.mesh, &vessel.analysis},
+                                        settings_at(dpi), fresh_dir("vessel"));
+  const Png png = read_png(files.png);
+  const SectionOnPlate section = find_section(png, pixel);
+  ASSERT_NEAR(section.rows * pixel, 40.0, 1.0) << "the section is 40 mm tall";
+  const auto column = [&](double u) { return static_cast<int>(section.axis_column + u / pixel); };
+  for (const double v_mm : {-15.0, 0.0, 15.0}) {  // heights 5, 20 and 35 mm
+    const int row = section.middle_row + static_cast<int>(v_mm / pixel);
+    int shaded = 0, paper = 0;
+    for (int i = column(-49.0); i <= column(-1.0); ++i)
+      shaded += !png.white(i, row) && !png.black(i, row);
+    for (int i = column(1.0); i <= column(44.0); ++i) paper += png.white(i, row);
+    EXPECT_EQ(shaded, column(-1.0) - column(-49.0) + 1) << "row " << row << ": exterior half";
+    EXPECT_EQ(paper, column(44.0) - column(1.0) + 1) << "row " << row << ": inside the section";
+    EXPECT_TRUE(png.black(column(47.5), row)) << "row " << row << ": the section";
+  }
+}
+
+// Runs of non-white pixels in a row: [first, last] columns.
+std::vector<std::pair<int, int>> ink_runs(const Png& png, int row) {
+  std::vector<std::pair<int, int>> runs;
+  for (int i = 0; i < png.width; ++i) {
+    if (png.white(i, row)) continue;
+    if (runs.empty() || runs.back().second != i - 1) runs.push_back({i, i});
+    runs.back().second = i;
+  }
+  return runs;
+}
+
+TEST(Plate, BodySherdShowsFrontAndBackAndNoSection) {
+  // No axis: a 100 × 30 × 5 mm slab with a 10 × 10 mm tab at one end (x 50…60 mm, y −5…5).
+  // Front and back views side by side, 10 mm apart; the back is the front turned over about the
+  // vertical, so the tab is at the other end; profile.svg has no section but says why.
+  const Mesh sherd =
+      test::merged(test::box(100.0, 30.0, 5.0), test::box(10.0, 10.0, 5.0, {55, 0, 0}));
+  const int dpi = 300;
+  const double pixel = 25.4 / dpi;
+  const PlateFiles files = render_plate({"scan-1", "body-1", &sherd, nullptr}, settings_at(dpi),
+                                        fresh_dir("body_front_back"));
+  const Png png = read_png(files.png);
+  // Rows through both views, with the tab (110 mm long) and without (100 mm).
+  std::vector<std::pair<int, int>> with_tab, without_tab;
+  for (int row = 0; row < png.height; ++row) {
+    const auto runs = ink_runs(png, row);
+    if (runs.size() != 2) continue;
+    const double a = (runs[0].second - runs[0].first + 1) * pixel;
+    const double b = (runs[1].second - runs[1].first + 1) * pixel;
+    if (std::abs(a - 110.0) < 0.2 && std::abs(b - 110.0) < 0.2) with_tab = runs;
+    if (std::abs(a - 100.0) < 0.2 && std::abs(b - 100.0) < 0.2) without_tab = runs;
+  }
+  ASSERT_FALSE(with_tab.empty()) << "no row through both views and the tab";
+  ASSERT_FALSE(without_tab.empty()) << "no row through both views beside the tab";
+  EXPECT_NEAR((with_tab[1].first - with_tab[0].second - 1) * pixel, 10.0, 2 * pixel)
+      << "the gap between the views";
+  // Which end carries the tab in each view: the end whose column moves by 10 mm.
+  const auto tab_on_the_right = [&](int view) {
+    return std::abs(with_tab[view].first - without_tab[view].first) <= 1;
+  };
+  EXPECT_NE(tab_on_the_right(0), tab_on_the_right(1)) << "the back is the front turned over";
+  for (int view = 0; view < 2; ++view) {
+    const int row_shift = tab_on_the_right(view) ? 0 : static_cast<int>(10.0 / pixel);
+    EXPECT_NEAR(without_tab[view].first - with_tab[view].first, row_shift, 1) << "view " << view;
+  }
+  const Svg svg = read_svg(files.svg);
+  EXPECT_TRUE(svg.section.empty()) << "no section without an axis";
+  std::ifstream in(files.svg);
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("no axis of rotation"), std::string::npos) << text;
 }
 
 TEST(Plate, CompositionInBandsEqualsOneBand) {

@@ -32,23 +32,31 @@ void add_grid(Mesh& mesh, int rows, int cols,
 
 }  // namespace
 
-Mesh box(double size_x, double size_y, double size_z) {
+Mesh box(double size_x, double size_y, double size_z, const Vec3d& centre) {
   Mesh mesh;
   const Vec3d half(size_x / 2, size_y / 2, size_z / 2);
   for (int axis = 0; axis < 3; ++axis)
     for (double sign : {-1.0, 1.0}) {
       const int a = (axis + 1) % 3, b = (axis + 2) % 3;
       add_grid(mesh, 1, 1, [&](double s, double t) {
-        Vec3d p = Vec3d::Zero();
-        p[axis] = sign * half[axis];
-        p[a] = (2 * s - 1) * half[a];
-        p[b] = (2 * t - 1) * half[b];
+        Vec3d p = centre;
+        p[axis] += sign * half[axis];
+        p[a] += (2 * s - 1) * half[a];
+        p[b] += (2 * t - 1) * half[b];
         Vec3d n = Vec3d::Zero();
         n[axis] = sign;
         return PointNormal{p.cast<float>(), n.cast<float>()};
       });
     }
   return mesh;
+}
+
+Mesh merged(Mesh a, const Mesh& b) {
+  const auto offset = static_cast<std::uint32_t>(a.vertices.size());
+  a.vertices.append(b.vertices);
+  for (const Triangle& t : b.triangles)
+    a.triangles.push_back({t[0] + offset, t[1] + offset, t[2] + offset});
+  return a;
 }
 
 Mesh cylinder_wall(double outer_r, double inner_r, double height, double from_rad, double to_rad) {

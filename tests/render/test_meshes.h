@@ -5,8 +5,11 @@
 
 namespace sherd::render::test {
 
-// An axis-aligned box centred on the origin, each face with its own vertices and outward normal.
-Mesh box(double size_x, double size_y, double size_z);
+// An axis-aligned box centred on `centre`, each face with its own vertices and outward normal.
+Mesh box(double size_x, double size_y, double size_z, const Vec3d& centre = Vec3d::Zero());
+
+// `b`'s vertices and triangles added to `a`'s.
+Mesh merged(Mesh a, const Mesh& b);
 
 // A wheel-made wall patch in its sherd frame (z = axis): outer radius `outer_r`, inner radius
 // `inner_r`, heights [0, height], azimuths [from_rad, to_rad]; outer, inner, top and bottom
