@@ -40,6 +40,11 @@ class SimulatedProjector : public Projector {
     std::lock_guard lock(mutex_);
     shown_.assign(pixels.begin(), pixels.end());
   }
+  // The whole pattern shown now (a copy: the camera thread reads while the scanner shows).
+  std::vector<std::uint8_t> shown() const {
+    std::lock_guard lock(mutex_);
+    return shown_;
+  }
   // The projector pixel (x, y) as lit now.
   std::uint8_t lit(int x, int y) const {
     std::lock_guard lock(mutex_);
