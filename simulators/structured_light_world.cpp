@@ -104,7 +104,7 @@ double albedo_of(const Rgb8& c) { return (c.r + c.g + c.b) / (3.0 * 255.0); }
 }  // namespace
 
 StructuredLightWorld::StructuredLightWorld(const sl::ProCamCalibration& calibration,
-                                           const BackgroundPlane& background,
+                                           const std::optional<BackgroundPlane>& background,
                                            const std::vector<Mesh>& objects,
                                            const StructuredLightOptics& optics)
     : calibration_(calibration), optics_(optics) {
@@ -121,16 +121,18 @@ StructuredLightWorld::StructuredLightWorld(const sl::ProCamCalibration& calibrat
   truth_.lit.assign(cells, 0);
   std::vector<double> albedo(cells, 0), cosine(cells, 0);
   std::vector<Vec3d> shading_normal(cells, Vec3d::Zero());
-  const Vec3d plane_normal = background.normal.normalized();
   for (std::size_t i = 0; i < cells; ++i) {
     const Vec3d ray = rays[i].cast<double>();  // (x, y, 1): the parameter is the depth
     double depth = std::numeric_limits<double>::infinity();
-    const double facing = plane_normal.dot(ray);
-    if (std::abs(facing) > 1e-9 && background.offset_mm / facing > kNearMm) {
-      depth = background.offset_mm / facing;
-      truth_.normals[i] = plane_normal.cast<float>();
-      shading_normal[i] = plane_normal;
-      albedo[i] = background.albedo;
+    if (background) {
+      const Vec3d plane_normal = background->normal.normalized();
+      const double facing = plane_normal.dot(ray);
+      if (std::abs(facing) > 1e-9 && background->offset_mm / facing > kNearMm) {
+        depth = background->offset_mm / facing;
+        truth_.normals[i] = plane_normal.cast<float>();
+        shading_normal[i] = plane_normal;
+        albedo[i] = background->albedo;
+      }
     }
     if (seen.object[i] >= 0) {
       const Mesh& mesh = objects[seen.object[i]];
@@ -306,7 +308,29 @@ VesselOnTable vessel_on_table(int camera_width, int camera_height, std::uint64_t
   return world;
 }
 
+sl::ProCamCalibration procam_aimed_at(const sl::Intrinsics& camera,
+                                      const Vec3d& projector_offset_mm, const Vec3d& target_mm,
+                                      int projector_width, int projector_height, double coverage) {
+  sl::ProCamCalibration c;
+  c.camera = camera;
+  // Projector axes in the camera frame: z towards the target, x as near the camera's x as that
+  // allows (x = y × z, y down, as for the camera).
+  const Vec3d z = (target_mm - projector_offset_mm).normalized();
+  const Vec3d x = Vec3d::UnitY().cross(z).normalized();
+  Eigen::Matrix3d projector_to_camera;
+  projector_to_camera << x, z.cross(x), z;
+  c.rotation = projector_to_camera.transpose();  // X_p = R (X_c − o)
+  c.translation_mm = -c.rotation * projector_offset_mm;
+  const double f = camera.matrix(0, 0) * projector_width / camera.width / coverage;
+  c.projector.width = projector_width;
+  c.projector.height = projector_height;
+  c.projector.matrix << f, 0, (projector_width - 1) / 2.0, 0, f, (projector_height - 1) / 2.0, 0, 0,
+      1;
+  return c;
+}
+
 struct SimulatedGigECamera::State {
+  std::mutex mutex;  // guards world: set_world against the camera thread
   std::shared_ptr<const StructuredLightWorld> world;
   const drivers::SimulatedProjector* projector = nullptr;
   ArvGvFakeCamera* fake = nullptr;
@@ -334,7 +358,12 @@ SimulatedGigECamera::SimulatedGigECamera(std::shared_ptr<const StructuredLightWo
   // pattern shown now, cut to the buffer's region.
   auto film_world = [](ArvBuffer* buffer, void* data, guint32, guint32, ArvPixelFormat) {
     State& s = *static_cast<State*>(data);
-    const StructuredLightWorld& world = *s.world;
+    std::shared_ptr<const StructuredLightWorld> held;
+    {
+      std::lock_guard lock(s.mutex);
+      held = s.world;
+    }
+    const StructuredLightWorld& world = *held;
     world.render(s.projector->shown(), s.frame);
     auto* pixels =
         static_cast<std::uint8_t*>(const_cast<void*>(arv_buffer_get_data(buffer, nullptr)));
@@ -354,5 +383,64 @@ SimulatedGigECamera::SimulatedGigECamera(std::shared_ptr<const StructuredLightWo
 }
 
 SimulatedGigECamera::~SimulatedGigECamera() { g_object_unref(state_->fake); }
+
+void SimulatedGigECamera::set_world(std::shared_ptr<const StructuredLightWorld> world) {
+  std::lock_guard lock(state_->mutex);
+  if (world->width() != state_->world->width() || world->height() != state_->world->height() ||
+      world->calibration().projector.width != state_->world->calibration().projector.width ||
+      world->calibration().projector.height != state_->world->calibration().projector.height)
+    throw InputError("simulated GigE camera: a new world must keep the camera and projector sizes");
+  state_->world = std::move(world);
+}
+
+SimulatedStructuredLightScanner::SimulatedStructuredLightScanner(
+    Scene scene, const Pose& camera_to_world, const sl::ProCamCalibration& calibration,
+    const sl::ScannerOptions& options, const StructuredLightOptics& optics,
+    std::function<double()> plate_angle)
+    : scene_(std::move(scene)),
+      camera_to_world_(camera_to_world),
+      calibration_(calibration),
+      optics_(optics),
+      plate_angle_(std::move(plate_angle)),
+      projector_(calibration.projector.width, calibration.projector.height) {
+  fake_ = std::make_unique<SimulatedGigECamera>(world_at(plate_angle_()), projector_);
+  drivers::AravisCameraSettings settings;
+  settings.id = "127.0.0.1";
+  settings.width = calibration.camera.width;
+  settings.height = calibration.camera.height;
+  camera_ = std::make_unique<drivers::AravisCamera>(settings);
+  scanner_ =
+      std::make_unique<sl::StructuredLightScanner>(*camera_, projector_, calibration, options);
+}
+
+SimulatedStructuredLightScanner::~SimulatedStructuredLightScanner() {
+  scanner_.reset();
+  camera_.reset();  // the driver lets go of the camera before the simulated camera goes
+  fake_.reset();
+  arv_shutdown();
+}
+
+std::string SimulatedStructuredLightScanner::describe() const {
+  return "simulated " + scanner_->describe();
+}
+
+std::shared_ptr<const StructuredLightWorld> SimulatedStructuredLightScanner::world_at(
+    double plate_angle) const {
+  Pose turned = Pose::Identity();
+  turned.linear() = Eigen::AngleAxisd(plate_angle, Vec3d::UnitZ()).toRotationMatrix();
+  const Pose world_to_camera = camera_to_world_.inverse();
+  std::vector<Mesh> objects;
+  for (const SceneObject& object : scene_.objects) {
+    Mesh mesh = object.mesh;
+    mesh.vertices.transform(object.on_plate ? world_to_camera * turned : world_to_camera);
+    objects.push_back(std::move(mesh));
+  }
+  return std::make_shared<const StructuredLightWorld>(calibration_, std::nullopt, objects, optics_);
+}
+
+OrganisedView SimulatedStructuredLightScanner::capture() {
+  fake_->set_world(world_at(plate_angle_()));
+  return scanner_->capture();
+}
 
 }  // namespace sherd::sim

@@ -12,15 +12,21 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
 
 #include "core/types.h"
+#include "drivers/aravis_camera.h"
 #include "drivers/projector.h"
+#include "drivers/scanner.h"
 #include "processing/structured_light/calibration.h"
+#include "processing/structured_light/scanner.h"
+#include "simulators/pottery.h"
 
 namespace sherd::sim {
 
@@ -49,11 +55,12 @@ struct WorldTruth {
 
 class StructuredLightWorld {
  public:
-  // `objects` in the camera frame (mm), vertex colours as albedo (grey = mean of r, g, b / 255).
+  // `objects` in the camera frame (mm), vertex colours as albedo (grey = mean of r, g, b / 255);
+  // without a background, rays that miss the objects see nothing (black).
   // Throws InputError when the calibration has no image sizes.
   StructuredLightWorld(const structured_light::ProCamCalibration& calibration,
-                       const BackgroundPlane& background, const std::vector<Mesh>& objects,
-                       const StructuredLightOptics& optics);
+                       const std::optional<BackgroundPlane>& background,
+                       const std::vector<Mesh>& objects, const StructuredLightOptics& optics);
 
   int width() const { return calibration_.camera.width; }
   int height() const { return calibration_.camera.height; }
@@ -86,6 +93,14 @@ struct VesselOnTable {
 };
 VesselOnTable vessel_on_table(int camera_width, int camera_height, std::uint64_t seed);
 
+// A camera + projector pair for a simulated station: the camera as given; the projector
+// (width × height pixels, no distortion) at `projector_offset_mm` in the camera frame, aimed at
+// `target_mm` (camera frame), its field `coverage` times the camera's across.
+structured_light::ProCamCalibration procam_aimed_at(const structured_light::Intrinsics& camera,
+                                                    const Vec3d& projector_offset_mm,
+                                                    const Vec3d& target_mm, int projector_width,
+                                                    int projector_height, double coverage = 1.5);
+
 // Aravis's simulated GigE Vision camera on 127.0.0.1 (UDP 3956; one at a time per machine) whose
 // frames are `world` under the pattern `projector` shows at the moment of the trigger. Open it
 // with drivers::AravisCamera (id "127.0.0.1") at the world's size; the serial number names it.
@@ -99,9 +114,45 @@ class SimulatedGigECamera {
   SimulatedGigECamera(const SimulatedGigECamera&) = delete;
   SimulatedGigECamera& operator=(const SimulatedGigECamera&) = delete;
 
+  // Films `world` from the next frame on (same camera and projector sizes). Throws InputError
+  // when the sizes differ.
+  void set_world(std::shared_ptr<const StructuredLightWorld> world);
+
  private:
   struct State;
   std::unique_ptr<State> state_;
+};
+
+// The simulated station's structured-light scanner: the station's scene (simulators/pottery.h),
+// with the plate turned to the turntable's physical angle, becomes a StructuredLightWorld at each
+// capture (camera at `camera_to_world`, the true pose); the real scanner (Aravis driver on the
+// simulated GigE camera, decoder, triangulation) captures it with `calibration` as its truth.
+class SimulatedStructuredLightScanner : public drivers::Scanner {
+ public:
+  // Throws DeviceError when the simulated camera cannot start (UDP 3956 taken).
+  SimulatedStructuredLightScanner(Scene scene, const Pose& camera_to_world,
+                                  const structured_light::ProCamCalibration& calibration,
+                                  const structured_light::ScannerOptions& options,
+                                  const StructuredLightOptics& optics,
+                                  std::function<double()> plate_angle);
+  ~SimulatedStructuredLightScanner() override;
+  std::string describe() const override;
+  OrganisedView capture() override;
+  // Replaces what lies on the plate. Not concurrently with capture().
+  void set_scene(Scene scene) { scene_ = std::move(scene); }
+
+ private:
+  std::shared_ptr<const StructuredLightWorld> world_at(double plate_angle) const;
+
+  Scene scene_;
+  Pose camera_to_world_;
+  structured_light::ProCamCalibration calibration_;
+  StructuredLightOptics optics_;
+  std::function<double()> plate_angle_;
+  drivers::SimulatedProjector projector_;
+  std::unique_ptr<SimulatedGigECamera> fake_;
+  std::unique_ptr<drivers::AravisCamera> camera_;
+  std::unique_ptr<structured_light::StructuredLightScanner> scanner_;
 };
 
 }  // namespace sherd::sim

@@ -9,6 +9,11 @@
 #include "core/errors.h"
 
 namespace sherd::structured_light {
+namespace {
+// Grid neighbours further apart than this lie across a depth jump, not on one surface (a camera
+// pixel spans well under a millimetre at a scanner's working distance).
+constexpr float kMaxNormalEdgeMm = 3.0f;
+}  // namespace
 
 StructuredLightScanner::StructuredLightScanner(drivers::Camera& camera,
                                                drivers::Projector& projector,
@@ -73,6 +78,7 @@ OrganisedView StructuredLightScanner::capture() {
         view.view.valid[i] = 0;
         view.view.points[i] = Vec3f::Constant(std::nanf(""));
       }
+  estimate_grid_normals(view.view, kMaxNormalEdgeMm);
   view.view.timestamp_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
                                std::chrono::system_clock::now().time_since_epoch())
                                .count();

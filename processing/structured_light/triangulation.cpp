@@ -156,6 +156,43 @@ Eigen::Vector3d Triangulator::camera_ray(const Eigen::Vector2d& pixel) const {
   return {out[0].x, out[0].y, 1.0};
 }
 
+void estimate_grid_normals(OrganisedView& view, float max_edge_mm) {
+  const int w = view.width, h = view.height;
+  std::vector<Vec3f> normals(view.cells(),
+                             Vec3f::Constant(std::numeric_limits<float>::quiet_NaN()));
+  auto usable = [&](int x, int y, const Vec3f& from) {
+    if (x < 0 || y < 0 || x >= w || y >= h) return false;
+    const std::size_t j = static_cast<std::size_t>(y) * w + x;
+    return view.valid[j] && (view.points[j] - from).norm() <= max_edge_mm;
+  };
+  // The difference across a cell in one direction: both neighbours where usable, else one side.
+  auto difference = [&](int x, int y, int dx, int dy, Vec3f& out) {
+    const Vec3f& p = view.points[static_cast<std::size_t>(y) * w + x];
+    const bool ahead = usable(x + dx, y + dy, p), behind = usable(x - dx, y - dy, p);
+    if (!ahead && !behind) return false;
+    const Vec3f a = ahead ? view.points[static_cast<std::size_t>(y + dy) * w + x + dx] : p;
+    const Vec3f b = behind ? view.points[static_cast<std::size_t>(y - dy) * w + x - dx] : p;
+    out = a - b;
+    return true;
+  };
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const std::size_t i = static_cast<std::size_t>(y) * w + x;
+      if (!view.valid[i]) continue;
+      Vec3f across, down;
+      Vec3f n = Vec3f::Zero();
+      if (difference(x, y, 1, 0, across) && difference(x, y, 0, 1, down)) n = across.cross(down);
+      if (!(n.norm() > 0)) {
+        view.valid[i] = 0;
+        view.points[i] = Vec3f::Constant(std::numeric_limits<float>::quiet_NaN());
+        continue;
+      }
+      n.normalize();
+      normals[i] = n.dot(view.points[i]) > 0 ? Vec3f(-n) : n;  // towards the camera
+    }
+  view.normals = std::move(normals);
+}
+
 BoardMeasurement measure_board(const Triangulator& triangulator, const TriangulatedView& view,
                                const std::vector<Eigen::Vector2f>& corners,
                                const Chessboard& board) {

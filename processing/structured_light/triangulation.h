@@ -48,6 +48,12 @@ class Triangulator {
   std::vector<Eigen::Vector3f> camera_rays_, projector_rays_;
 };
 
+// Fills view.normals from the organised grid (the cross product of the differences to the
+// neighbours across and down, each side where valid and within `max_edge_mm`), unit and facing the
+// camera at the origin. A cell without a neighbour both ways has no normal: it is made invalid (an
+// isolated point is no surface).
+void estimate_grid_normals(OrganisedView& view, float max_edge_mm);
+
 // A scanner check against the chessboard's known geometry: a plane fitted to the triangulated
 // points inside the board's outer inner corners, the corners placed where their camera rays meet
 // that plane, and the spans between outer corners (truth: (inner_columns − 1) and
