@@ -119,6 +119,8 @@ std::unique_ptr<drivers::Scanner> make_structured_light_scanner(const config::St
   camera.id = c.camera_id;
   camera.width = calibration.camera.width;
   camera.height = calibration.camera.height;
+  if (c.trigger == "line") camera.trigger = drivers::AravisCameraSettings::Trigger::kLine;
+  camera.trigger_line = c.trigger_line;
   const drivers::AravisCamera opened(camera);  // DeviceError when the camera is not found
   throw DeviceError(fmt::format("scanner: camera {} found, but this build has no driver for a real "
                                 "projector (drivers/README.md); use driver = \"structured-light-simulated\" "

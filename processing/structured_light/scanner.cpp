@@ -56,6 +56,7 @@ OrganisedView StructuredLightScanner::capture() {
   std::vector<GreyImage> frames;
   frames.reserve(pattern_frames_.size());
   for (const GreyImage& pattern : pattern_frames_) {
+    camera_.arm();
     projector_.show(pattern.pixels);
     drivers::CameraFrame frame = camera_.capture();
     if (frame.width != camera_width_ || frame.height != camera_height_)
