@@ -313,6 +313,8 @@ StationConfig load_station_config(const fs::path& file) {
   scanner.read("projector_height", sc.projector_height, from_to(16, 16384));
   scanner.read("trigger", sc.trigger, {"software", "line"});
   scanner.read("trigger_line", sc.trigger_line);
+  scanner.read("projector_device", sc.projector_device);
+  scanner.read("projector_connector", sc.projector_connector);
   scanner.reject_unknown_keys();
   if ((sc.look_at_mm - sc.position_mm).norm() < 1e-6) {
     const char* key = scanner.has("look_at_mm") ? "look_at_mm" : "position_mm";

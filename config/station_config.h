@@ -64,6 +64,9 @@ struct ScannerSettings {
   // pattern) or "line" (the projector's sync output drives `trigger_line`, rising edge).
   std::string trigger = "software";
   std::string trigger_line = "Line1";
+  // The projector as a display (DRM/KMS): the card, and its connector ("" = the first connected).
+  std::string projector_device = "/dev/dri/card0";
+  std::string projector_connector;
 };
 
 struct TurntableSettings {

@@ -3,6 +3,7 @@
 #include "core/errors.h"
 #include "drivers/libusb_transport.h"
 #include "drivers/aravis_camera.h"
+#include "drivers/drm_projector.h"
 #include "drivers/usb_turntable.h"
 #include "processing/structured_light/scanner.h"
 #include "simulators/sim_scanner.h"
@@ -99,8 +100,25 @@ sl::ScannerOptions structured_light_options(const config::ScannerSettings& c) {
   return options;
 }
 
+// The structured-light scanner on a real camera and projector, which it owns.
+class CameraProjectorScanner : public drivers::Scanner {
+ public:
+  CameraProjectorScanner(std::unique_ptr<drivers::Camera> camera, std::unique_ptr<drivers::Projector> projector,
+                         const sl::ProCamCalibration& calibration, const sl::ScannerOptions& options)
+      : camera_(std::move(camera)),
+        projector_(std::move(projector)),
+        scanner_(*camera_, *projector_, calibration, options) {}
+  std::string describe() const override { return scanner_.describe(); }
+  OrganisedView capture() override { return scanner_.capture(); }
+
+ private:
+  std::unique_ptr<drivers::Camera> camera_;
+  std::unique_ptr<drivers::Projector> projector_;
+  sl::StructuredLightScanner scanner_;
+};
+
 // [scanner] driver = "structured-light": the calibration file, the Aravis camera at the calibrated
-// size, the projector.
+// size, the projector as a DRM/KMS display.
 std::unique_ptr<drivers::Scanner> make_structured_light_scanner(const config::StationConfig& config) {
   const auto& c = config.scanner;
   std::error_code error;
@@ -121,11 +139,11 @@ std::unique_ptr<drivers::Scanner> make_structured_light_scanner(const config::St
   camera.height = calibration.camera.height;
   if (c.trigger == "line") camera.trigger = drivers::AravisCameraSettings::Trigger::kLine;
   camera.trigger_line = c.trigger_line;
-  const drivers::AravisCamera opened(camera);  // DeviceError when the camera is not found
-  throw DeviceError(fmt::format("scanner: camera {} found, but this build has no driver for a real "
-                                "projector (drivers/README.md); use driver = \"structured-light-simulated\" "
-                                "for the scanner on the simulated projector",
-                                opened.describe()));
+  auto opened = std::make_unique<drivers::AravisCamera>(camera);  // DeviceError: not found
+  auto projector = std::make_unique<drivers::DrmProjector>(
+      drivers::DrmProjectorSettings{c.projector_device, c.projector_connector});  // DeviceError
+  return std::make_unique<CameraProjectorScanner>(std::move(opened), std::move(projector), calibration,
+                                                  structured_light_options(c));
 }
 
 // Uncalibrated, the nominal pose may be off by a mounting error of this order.
