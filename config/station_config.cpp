@@ -282,7 +282,7 @@ StationConfig load_station_config(const fs::path& file) {
 
   auto& sc = config.scanner;
   Section scanner = section("scanner");
-  scanner.read("driver", sc.driver, {"simulated"});
+  scanner.read("driver", sc.driver, {"simulated", "structured-light-simulated", "structured-light"});
   scanner.read("width", sc.width, from_to(16, 16384));
   scanner.read("height", sc.height, from_to(16, 16384));
   scanner.read("fx", sc.fx, above(0));
@@ -295,6 +295,26 @@ StationConfig load_station_config(const fs::path& file) {
   scanner.read("depth_noise_mm", sc.depth_noise_mm, from_to(0, 10));
   scanner.read("grazing_limit_deg", sc.grazing_limit_deg, above_to(0, 90));
   scanner.read("dropout_fraction", sc.dropout_fraction, from_below(0, 1));
+  scanner.read("camera_id", sc.camera_id);
+  const auto scanner_calibration = scanner.read_path("calibration_file");
+  if (scanner_calibration) {
+    sc.calibration_file = fs::absolute(*scanner_calibration).lexically_normal();
+    sc.calibration_file_from_config = true;
+  }  // else set_data_dir above has put it under data_dir
+  scanner.read("patterns", sc.patterns, {"gray", "phase"});
+  scanner.read("black_threshold", sc.black_threshold, from_to(0, 255));
+  scanner.read("white_threshold", sc.white_threshold, from_to(0, 255));
+  scanner.read("edge_bits", sc.edge_bits, from_to(0, 2));
+  scanner.read("min_modulation", sc.min_modulation, from_to(0, 128));
+  scanner.read("phase_period_px", sc.phase_period_px, from_to(4, 1024));
+  scanner.read("phase_steps", sc.phase_steps, from_to(3, 32));
+  scanner.read("max_ray_gap_mm", sc.max_ray_gap_mm, from_to(0, 1000));
+  scanner.read("projector_width", sc.projector_width, from_to(16, 16384));
+  scanner.read("projector_height", sc.projector_height, from_to(16, 16384));
+  scanner.read("trigger", sc.trigger, {"software", "line"});
+  scanner.read("trigger_line", sc.trigger_line);
+  scanner.read("projector_device", sc.projector_device);
+  scanner.read("projector_connector", sc.projector_connector);
   scanner.reject_unknown_keys();
   if ((sc.look_at_mm - sc.position_mm).norm() < 1e-6) {
     const char* key = scanner.has("look_at_mm") ? "look_at_mm" : "position_mm";
@@ -391,6 +411,9 @@ void set_data_dir(StationConfig& config, const fs::path& data_dir) {
   if (!paths.socket_from_config) paths.socket = paths.data_dir / "sherdd.sock";
   if (!config.calibration.turntable_file_from_config) {
     config.calibration.turntable_file = paths.data_dir / "calibration" / "turntable.json";
+  }
+  if (!config.scanner.calibration_file_from_config) {
+    config.scanner.calibration_file = paths.data_dir / "calibration" / "scanner.xml";
   }
 }
 

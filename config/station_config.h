@@ -29,7 +29,9 @@ struct ScanSettings {
 };
 
 struct ScannerSettings {
-  std::string driver = "simulated";  // "simulated" (more drivers come with [structured-light])
+  // "simulated" (ray-cast views), "structured-light-simulated" (the structured-light scanner on
+  // the simulated GigE camera and projector), "structured-light" (Aravis camera + projector)
+  std::string driver = "simulated";
   int width = 640, height = 480;     // pixels
   double fx = 800.0, fy = 800.0;     // focal lengths in pixels
   double cx = 319.5, cy = 239.5;     // principal point in pixels
@@ -43,6 +45,28 @@ struct ScannerSettings {
   double depth_noise_mm = 0.05;       // standard deviation along the viewing ray
   double grazing_limit_deg = 78.0;    // beyond this incidence angle no point is measured
   double dropout_fraction = 0.01;     // random missing cells
+  // Structured-light drivers ("structured-light", "structured-light-simulated"): the Aravis camera
+  // (device id or IP; "" = the first found), the calibration file of `sherdctl calibrate scanner`
+  // (default data_dir/calibration/scanner.xml), the pattern set and the decoder's thresholds.
+  std::string camera_id;
+  std::filesystem::path calibration_file;
+  bool calibration_file_from_config = false;
+  std::string patterns = "gray";  // gray | phase (Gray code + phase-shifted fringes)
+  int black_threshold = 40;       // white − black frame, grey levels: below is shadow
+  int white_threshold = 5;        // |pattern − inverse|, grey levels: below the bit is unclear
+  int edge_bits = 1;              // unclear bits per axis tolerated (a stripe edge)
+  double min_modulation = 8.0;    // phase: fringe amplitude, grey levels
+  int phase_period_px = 16;
+  int phase_steps = 4;
+  double max_ray_gap_mm = 0.0;    // drop points whose rays pass further apart; 0 = keep all
+  int projector_width = 1024, projector_height = 768;  // where the calibration file has none
+  // Camera trigger per pattern: "software" (the driver triggers once the projector shows the
+  // pattern) or "line" (the projector's sync output drives `trigger_line`, rising edge).
+  std::string trigger = "software";
+  std::string trigger_line = "Line1";
+  // The projector as a display (DRM/KMS): the card, and its connector ("" = the first connected).
+  std::string projector_device = "/dev/dri/card0";
+  std::string projector_connector;
 };
 
 struct TurntableSettings {

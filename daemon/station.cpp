@@ -2,8 +2,12 @@
 
 #include "core/errors.h"
 #include "drivers/libusb_transport.h"
+#include "drivers/aravis_camera.h"
+#include "drivers/drm_projector.h"
 #include "drivers/usb_turntable.h"
+#include "processing/structured_light/scanner.h"
 #include "simulators/sim_scanner.h"
+#include "simulators/structured_light_world.h"
 #include "simulators/sim_turntable.h"
 #include "simulators/turntable_firmware.h"
 
@@ -83,6 +87,65 @@ std::unique_ptr<drivers::Turntable> make_turntable(const config::StationConfig& 
   return std::make_unique<drivers::UsbTurntable>(std::move(transport), settings);
 }
 
+namespace sl = structured_light;
+
+sl::ScannerOptions structured_light_options(const config::ScannerSettings& c) {
+  sl::ScannerOptions options;
+  options.patterns = c.patterns == "phase" ? sl::PatternSet::kPhase : sl::PatternSet::kGray;
+  options.thresholds = {c.black_threshold, c.white_threshold, c.edge_bits};
+  options.phase_period_px = c.phase_period_px;
+  options.phase_steps = c.phase_steps;
+  options.min_modulation = c.min_modulation;
+  options.max_ray_gap_mm = c.max_ray_gap_mm;
+  return options;
+}
+
+// The structured-light scanner on a real camera and projector, which it owns.
+class CameraProjectorScanner : public drivers::Scanner {
+ public:
+  CameraProjectorScanner(std::unique_ptr<drivers::Camera> camera, std::unique_ptr<drivers::Projector> projector,
+                         const sl::ProCamCalibration& calibration, const sl::ScannerOptions& options)
+      : camera_(std::move(camera)),
+        projector_(std::move(projector)),
+        scanner_(*camera_, *projector_, calibration, options) {}
+  std::string describe() const override { return scanner_.describe(); }
+  OrganisedView capture() override { return scanner_.capture(); }
+
+ private:
+  std::unique_ptr<drivers::Camera> camera_;
+  std::unique_ptr<drivers::Projector> projector_;
+  sl::StructuredLightScanner scanner_;
+};
+
+// [scanner] driver = "structured-light": the calibration file, the Aravis camera at the calibrated
+// size, the projector as a DRM/KMS display.
+std::unique_ptr<drivers::Scanner> make_structured_light_scanner(const config::StationConfig& config) {
+  const auto& c = config.scanner;
+  std::error_code error;
+  if (!std::filesystem::exists(c.calibration_file, error)) {
+    throw InputError(fmt::format("{}: scanner.calibration_file: no scanner calibration at {}; run "
+                                 "`sherdctl calibrate scanner --captures DIR…` or set calibration_file",
+                                 config.source.string(), c.calibration_file.string()));
+  }
+  sl::ProCamCalibration calibration = sl::read_calibration(c.calibration_file);
+  if (calibration.camera.width <= 0) {
+    throw InputError(fmt::format("{}: the scanner calibration has no camera image size (img_shape); "
+                                 "calibrate again with `sherdctl calibrate scanner`",
+                                 c.calibration_file.string()));
+  }
+  drivers::AravisCameraSettings camera;
+  camera.id = c.camera_id;
+  camera.width = calibration.camera.width;
+  camera.height = calibration.camera.height;
+  if (c.trigger == "line") camera.trigger = drivers::AravisCameraSettings::Trigger::kLine;
+  camera.trigger_line = c.trigger_line;
+  auto opened = std::make_unique<drivers::AravisCamera>(camera);  // DeviceError: not found
+  auto projector = std::make_unique<drivers::DrmProjector>(
+      drivers::DrmProjectorSettings{c.projector_device, c.projector_connector});  // DeviceError
+  return std::make_unique<CameraProjectorScanner>(std::move(opened), std::move(projector), calibration,
+                                                  structured_light_options(c));
+}
+
 // Uncalibrated, the nominal pose may be off by a mounting error of this order.
 constexpr double kUncalibratedTiltSdDeg = 0.5;
 constexpr double kUncalibratedTranslationSdMm = 2.0;
@@ -137,7 +200,8 @@ sim::SceneSpec scene_spec(const config::SimulationSettings& simulation) {
 }
 
 Station make_station(const config::StationConfig& config) {
-  if (config.scanner.driver != "simulated") {
+  if (config.scanner.driver != "simulated" && config.scanner.driver != "structured-light-simulated" &&
+      config.scanner.driver != "structured-light") {
     throw InputError(fmt::format("{}: scanner.driver = \"{}\": no such driver in this build; use \"simulated\"",
                                  config.source.string(), config.scanner.driver));
   }
@@ -178,6 +242,34 @@ Station make_station(const config::StationConfig& config) {
   model.seed = config.simulation.seed;
 
   const sim::SceneSpec spec = scene_spec(config.simulation);
+  if (c.driver == "structured-light") {
+    station.scanner = make_structured_light_scanner(config);
+    station.turntable = std::move(turntable);
+    return station;
+  }
+  if (c.driver == "structured-light-simulated") {
+    // Its camera is the [scanner] camera at its physical pose; its projector sits at
+    // projector_offset_mm aimed at look_at_mm. Both are also its calibration (the simulated truth).
+    sl::Intrinsics camera;
+    camera.width = c.width;
+    camera.height = c.height;
+    camera.matrix << c.fx, 0, c.cx, 0, c.fy, c.cy, 0, 0, 1;
+    const Vec3d target = calibrated_scanner_pose(c).inverse() * c.look_at_mm;
+    const sl::ProCamCalibration calibration =
+        sim::procam_aimed_at(camera, c.projector_offset_mm, target, c.projector_width, c.projector_height);
+    auto scanner = std::make_unique<sim::SimulatedStructuredLightScanner>(
+        sim::make_scene(spec), model.scanner_to_world, calibration, structured_light_options(c),
+        sim::StructuredLightOptics{.seed = config.simulation.seed}, std::move(plate_angle));
+    sim::SimulatedStructuredLightScanner* simulated = scanner.get();
+    station.place_calibration_object = [simulated, spec](bool on_plate) {
+      sim::SceneSpec now = spec;
+      if (on_plate) now.kind = sim::SceneKind::Calibration;
+      simulated->set_scene(sim::make_scene(now));
+    };
+    station.scanner = std::move(scanner);
+    station.turntable = std::move(turntable);
+    return station;
+  }
   auto scanner =
       std::make_unique<sim::SimulatedScanner>(sim::make_scene(spec), model, std::move(plate_angle));
   sim::SimulatedScanner* simulated = scanner.get();

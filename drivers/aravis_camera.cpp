@@ -67,8 +67,36 @@ AravisCamera::AravisCamera(const AravisCameraSettings& settings) : state_(new St
   }
   arv_camera_set_acquisition_mode(s.camera, ARV_ACQUISITION_MODE_CONTINUOUS, &error);
   check("acquisition mode");
-  arv_camera_set_trigger(s.camera, "Software", &error);
-  check("software trigger");
+  if (settings.trigger == AravisCameraSettings::Trigger::kSoftware) {
+    arv_camera_set_trigger(s.camera, "Software", &error);
+    check("software trigger");
+  } else {
+    guint count = 0;
+    const char** sources = arv_camera_dup_available_trigger_sources(s.camera, &count, &error);
+    check("trigger source (cannot list them)");
+    std::string names;
+    bool found = false;
+    for (guint i = 0; i < count; ++i) {
+      names += (i ? ", " : "") + std::string(sources[i]);
+      found |= settings.trigger_line == sources[i];
+    }
+    g_free(sources);
+    if (!found)
+      throw DeviceError(fmt::format(
+          "camera {}: no trigger source \"{}\" (it has: {}); set [scanner] trigger_line to one "
+          "of them, or trigger = \"software\"",
+          label, settings.trigger_line, names.empty() ? "none" : names));
+    arv_camera_set_trigger(s.camera, settings.trigger_line.c_str(), &error);
+    check("hardware trigger");
+    if (!arv_camera_is_feature_available(s.camera, "TriggerActivation", nullptr))
+      throw DeviceError(fmt::format(
+          "camera {}: no TriggerActivation feature, so the edge of {} that starts a frame cannot "
+          "be chosen; use trigger = \"software\"",
+          label, settings.trigger_line));
+    arv_camera_set_string(s.camera, "TriggerActivation", settings.trigger_activation.c_str(),
+                          &error);
+    check(("TriggerActivation " + settings.trigger_activation).c_str());
+  }
 
   s.stream = arv_camera_create_stream(s.camera, nullptr, nullptr, &error);
   if (!s.stream)
@@ -103,16 +131,30 @@ std::string AravisCamera::describe() const { return state_->name; }
 
 int AravisCamera::incomplete_frames() const { return state_->incomplete; }
 
+std::string AravisCamera::feature(const std::string& name) const {
+  GError* error = nullptr;
+  const char* value = arv_camera_get_string(state_->camera, name.c_str(), &error);
+  if (error || !value)
+    throw DeviceError(fmt::format("camera {}: no feature {}: {}", state_->name, name,
+                                  take_message(error, "no value")));
+  return value;
+}
+
+void AravisCamera::arm() {
+  // A frame left over from an earlier trigger would be stale: drop whatever is queued.
+  while (ArvBuffer* old = arv_stream_try_pop_buffer(state_->stream))
+    arv_stream_push_buffer(state_->stream, old);
+}
+
 CameraFrame AravisCamera::capture() {
   State& s = *state_;
-  // A frame left over from an earlier trigger would be stale: drop whatever is queued.
-  while (ArvBuffer* old = arv_stream_try_pop_buffer(s.stream))
-    arv_stream_push_buffer(s.stream, old);
+  const bool software = s.settings.trigger == AravisCameraSettings::Trigger::kSoftware;
+  if (software) arm();  // under a line trigger the wanted frame may already be queued
   for (int attempt = 0; attempt <= s.settings.max_recaptures; ++attempt) {
     if (s.control_lost)
       throw DeviceError(fmt::format("camera {}: link lost; check the cable and power", s.name));
     GError* error = nullptr;
-    arv_camera_software_trigger(s.camera, &error);
+    if (software) arv_camera_software_trigger(s.camera, &error);
     if (error)
       throw DeviceError(
           fmt::format("camera {}: trigger failed: {}", s.name, take_message(error, "")));
@@ -121,12 +163,22 @@ CameraFrame AravisCamera::capture() {
     if (!buffer) {
       if (s.control_lost)
         throw DeviceError(fmt::format("camera {}: link lost; check the cable and power", s.name));
+      if (!software)
+        throw DeviceError(fmt::format(
+            "camera {}: no frame within {} ms (timeout); no {} edge came on {}: check the "
+            "projector's sync cable and output",
+            s.name, s.settings.timeout_ms, s.settings.trigger_activation, s.settings.trigger_line));
       throw DeviceError(fmt::format("camera {}: no frame within {} ms of the trigger (timeout)",
                                     s.name, s.settings.timeout_ms));
     }
     if (arv_buffer_get_status(buffer) != ARV_BUFFER_STATUS_SUCCESS) {
       ++s.incomplete;  // missing packets even after resend: trigger again
       arv_stream_push_buffer(s.stream, buffer);
+      if (!software)
+        throw DeviceError(fmt::format(
+            "camera {}: incomplete frame (missing packets) under the hardware trigger, which "
+            "cannot be repeated from here; check the network link and the packet size",
+            s.name));
       continue;
     }
     CameraFrame frame;

@@ -1,4 +1,5 @@
-// A GigE Vision / USB3 Vision camera through Aravis 0.8: Mono8, software trigger per pattern, a
+// A GigE Vision / USB3 Vision camera through Aravis 0.8: Mono8, software or hardware (line)
+// trigger per pattern, a
 // pool of stream buffers, packet resend and an automatically sized socket buffer (GigE); frames
 // with missing packets are dropped and the trigger repeated.
 #pragma once
@@ -19,6 +20,13 @@ struct AravisCameraSettings {
   int buffers = 8;         // stream buffer pool
   int timeout_ms = 2000;   // per frame
   int max_recaptures = 3;  // incomplete frames tolerated per capture before failing
+  // Per-frame trigger: kSoftware (capture() triggers) or kLine (a hardware line, e.g. the
+  // projector's sync output, starts each frame: TriggerSource = trigger_line, TriggerActivation =
+  // trigger_activation; capture() waits for the frame).
+  enum class Trigger { kSoftware, kLine };
+  Trigger trigger = Trigger::kSoftware;
+  std::string trigger_line = "Line1";
+  std::string trigger_activation = "RisingEdge";
 };
 
 class AravisCamera : public Camera {
@@ -30,7 +38,12 @@ class AravisCamera : public Camera {
   AravisCamera& operator=(const AravisCamera&) = delete;
 
   std::string describe() const override;
+  void arm() override;
+  // Under a hardware trigger an incomplete frame cannot be triggered again: DeviceError.
   CameraFrame capture() override;
+  // The current value of a GenICam string or enumeration feature ("TriggerSource", …), for
+  // checks and diagnostics. Throws DeviceError when the camera has no such feature.
+  std::string feature(const std::string& name) const;
   // Frames dropped so far because packets were missing (each was recaptured).
   int incomplete_frames() const;
 

@@ -19,8 +19,12 @@ class Camera {
  public:
   virtual ~Camera() = default;
   virtual std::string describe() const = 0;
-  // Triggers and returns one complete frame. Throws DeviceError (timeout, link lost, too many
-  // incomplete frames); never returns a partial or stale frame.
+  // Discards frames already queued: call before whatever starts the next frame (the projector
+  // showing its pattern, whose sync output may trigger a hardware-triggered camera).
+  virtual void arm() {}
+  // Triggers (software trigger) or awaits (hardware trigger) and returns one complete frame. Throws
+  // DeviceError (timeout, link lost, too many incomplete frames); never returns a partial or stale
+  // frame.
   virtual CameraFrame capture() = 0;
 };
 

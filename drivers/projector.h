@@ -1,10 +1,7 @@
 // The scanner's projector: shows one 8-bit grey pattern at a time, full screen.
 //
-// Implementations: SimulatedProjector (below, for tests and the simulated station). A real
-// projector on a headless station is a display: the planned driver opens the DRM/KMS device, sets
-// the projector's native mode and shows each pattern full screen through EGL on GBM, waiting for
-// the page flip (vblank) before the camera is triggered. It is not built yet: nothing here can
-// drive a display (no DRM device on CI).
+// Implementations: SimulatedProjector (below, for tests and the simulated station) and
+// DrmProjector (drm_projector.h: a projector attached as a display, through DRM/KMS).
 #pragma once
 
 #include <cstdint>
@@ -39,6 +36,11 @@ class SimulatedProjector : public Projector {
       throw std::invalid_argument("simulated projector: pattern size does not match the projector");
     std::lock_guard lock(mutex_);
     shown_.assign(pixels.begin(), pixels.end());
+  }
+  // The whole pattern shown now (a copy: the camera thread reads while the scanner shows).
+  std::vector<std::uint8_t> shown() const {
+    std::lock_guard lock(mutex_);
+    return shown_;
   }
   // The projector pixel (x, y) as lit now.
   std::uint8_t lit(int x, int y) const {

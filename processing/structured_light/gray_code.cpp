@@ -116,12 +116,14 @@ DecodedMap decode(const GrayCodePatterns& patterns, std::span<const GreyImage> f
       bool ambiguous = false;
       auto read_bits = [&](int first_frame, int bits) {
         std::uint32_t gray = 0;
+        int unclear = 0;
         for (int b = 0; b < bits; ++b) {
           const int lit = frames[first_frame + 2 * b].pixels[i];
           const int unlit = frames[first_frame + 2 * b + 1].pixels[i];
-          ambiguous |= std::abs(lit - unlit) < thresholds.white;
+          unclear += std::abs(lit - unlit) < thresholds.white;
           gray = (gray << 1) | (lit > unlit ? 1u : 0u);
         }
+        ambiguous |= unclear > thresholds.edge_bits;
         return static_cast<std::int32_t>(gray_to_binary(gray));
       };
       const std::int32_t column = read_bits(0, column_bits);

@@ -44,6 +44,10 @@ struct GrayCodePatterns {
 struct DecodeThresholds {
   int black = 40;  // white − black frame must exceed this, or the pixel is in shadow
   int white = 5;   // |pattern − inverse| must reach this for every bit, or the pixel is ambiguous
+  // Bits per axis allowed below `white`. A pixel on a stripe edge sees its bit half lit; Gray code
+  // changes one bit from each column to the next, so either reading of that one bit is a column
+  // beside the edge (which phase shifting refines anyway). 0 = the reference's rule.
+  int edge_bits = 0;
 };
 
 // kSaturated: a phase-shift frame clipped at the sensor's top (set by refine_columns).

@@ -1,6 +1,7 @@
 // The structured-light scanner as the station sees it (drivers::Scanner): the projector shows the
-// Gray-code sequence, the camera captures each pattern, the frames are decoded and triangulated
-// into one organised view in the camera frame (mm), grey colour from the white frame.
+// pattern sequence (Gray code, optionally followed by phase-shifted fringes), the camera captures
+// each pattern, the frames are decoded and triangulated into one organised view in the camera frame
+// (mm), grey colour from the white frame.
 #pragma once
 
 #include <memory>
@@ -10,29 +11,49 @@
 #include "drivers/scanner.h"
 #include "processing/structured_light/calibration.h"
 #include "processing/structured_light/gray_code.h"
+#include "processing/structured_light/phase_shift.h"
 #include "processing/structured_light/triangulation.h"
 
 namespace sherd::structured_light {
+
+enum class PatternSet {
+  kGray,   // Gray code alone: projector columns to the pixel
+  kPhase,  // Gray code, then phase-shifted fringes refining the column to a fraction of a pixel
+};
+
+struct ScannerOptions {
+  PatternSet patterns = PatternSet::kGray;
+  DecodeThresholds thresholds{.edge_bits = 1};
+  int phase_period_px = 16;   // fringe period (kPhase)
+  int phase_steps = 4;        // fringe frames (kPhase)
+  double min_modulation = 8;  // grey levels of fringe amplitude below which a pixel is dropped
+  // Points whose camera and projector rays pass further apart than this are dropped: the decoded
+  // column and row disagree (a pixel straddling a depth edge, a misdecoded bit). 0 = keep all.
+  double max_ray_gap_mm = 0;
+  int threads = 2;
+};
 
 class StructuredLightScanner : public drivers::Scanner {
  public:
   // Camera and projector must outlive the scanner. Throws InputError when the projector's size
   // is not the calibrated one.
   StructuredLightScanner(drivers::Camera& camera, drivers::Projector& projector,
-                         const ProCamCalibration& calibration, DecodeThresholds thresholds = {},
-                         int threads = 2);
+                         const ProCamCalibration& calibration, const ScannerOptions& options = {});
 
   std::string describe() const override;
   // Throws DeviceError when the camera fails or delivers frames of another size than calibrated.
   OrganisedView capture() override;
 
+  // Frames one capture shows and films.
+  int frame_count() const { return static_cast<int>(pattern_frames_.size()); }
+
  private:
   drivers::Camera& camera_;
   drivers::Projector& projector_;
-  GrayCodePatterns patterns_;
+  ScannerOptions options_;
+  GrayCodePatterns gray_;
+  PhaseShiftPatterns phase_;
   std::vector<GreyImage> pattern_frames_;  // made once: the same sequence every capture
-  DecodeThresholds thresholds_;
-  int threads_;
   Triangulator triangulator_;
   int camera_width_, camera_height_;
 };

@@ -16,7 +16,20 @@
 namespace sherd::structured_light {
 namespace {
 
-// Undistorted normalised directions (x, y, 1) for every pixel of an image, rotated by `rotation`.
+// Inside the convex quadrilateral `quad` (either winding).
+bool inside(const std::array<Eigen::Vector2f, 4>& quad, float x, float y) {
+  int sign = 0;
+  for (int k = 0; k < 4; ++k) {
+    const Eigen::Vector2f a = quad[k], b = quad[(k + 1) % 4];
+    const int s = (b.x() - a.x()) * (y - a.y()) - (b.y() - a.y()) * (x - a.x()) > 0 ? 1 : -1;
+    if (sign == 0) sign = s;
+    if (s != sign) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
 std::vector<Eigen::Vector3f> pixel_rays(const Intrinsics& intrinsics,
                                         const Eigen::Matrix3d& rotation) {
   std::vector<cv::Point2f> pixels;
@@ -37,20 +50,6 @@ std::vector<Eigen::Vector3f> pixel_rays(const Intrinsics& intrinsics,
     rays[i] = r * Eigen::Vector3f(normalised[i].x, normalised[i].y, 1.f);
   return rays;
 }
-
-// Inside the convex quadrilateral `quad` (either winding).
-bool inside(const std::array<Eigen::Vector2f, 4>& quad, float x, float y) {
-  int sign = 0;
-  for (int k = 0; k < 4; ++k) {
-    const Eigen::Vector2f a = quad[k], b = quad[(k + 1) % 4];
-    const int s = (b.x() - a.x()) * (y - a.y()) - (b.y() - a.y()) * (x - a.x()) > 0 ? 1 : -1;
-    if (sign == 0) sign = s;
-    if (s != sign) return false;
-  }
-  return true;
-}
-
-}  // namespace
 
 Triangulator::Triangulator(const ProCamCalibration& calibration) : calibration_(calibration) {
   if (calibration.camera.width <= 0 || calibration.projector.width <= 0)
@@ -85,19 +84,39 @@ TriangulatedView Triangulator::triangulate(const DecodedMap& map, const GreyImag
   auto run = [&](std::size_t begin, std::size_t end) {
     for (std::size_t i = begin; i < end; ++i) {
       if (map.state[i] != PixelState::kDecoded) continue;
-      // Closest points of the rays s·u (camera, from the origin) and c + t·v (projector).
-      // In double: the rays meet at a small angle, so uu·vv − uv² cancels most of its digits.
       const Eigen::Vector3d u = camera_rays_[i].cast<double>();
-      const Eigen::Vector3d v = projector_ray(map, i).cast<double>();
-      const double uu = u.dot(u), uv = u.dot(v), vv = v.dot(v), uc = u.dot(c), vc = v.dot(c);
-      const double det = uu * vv - uv * uv;
-      if (std::abs(det) < 1e-12 * uu * vv) continue;  // parallel rays: no depth
-      const double s = (uc * vv - uv * vc) / det;
-      const double t = (uv * uc - uu * vc) / det;
-      if (s <= 0 || t <= 0) continue;  // behind the camera or the projector
-      const Eigen::Vector3d on_camera = s * u, on_projector = c + t * v;
-      view.points[i] = (0.5 * (on_camera + on_projector)).cast<float>();
-      out.ray_gap_mm[i] = static_cast<float>((on_camera - on_projector).norm());
+      const Eigen::Vector3d v = projector_ray(map, i, map.row[i]).cast<double>();
+      Eigen::Vector3d point;
+      double gap = 0;
+      if (map.column_fine.empty()) {
+        // Whole projector pixels in both directions: the midpoint of the closest points of the
+        // rays s·u (camera, from the origin) and c + t·v (projector). In double: the rays meet at
+        // a small angle, so uu·vv − uv² cancels most of its digits.
+        const double uu = u.dot(u), uv = u.dot(v), vv = v.dot(v), uc = u.dot(c), vc = v.dot(c);
+        const double det = uu * vv - uv * uv;
+        if (std::abs(det) < 1e-12 * uu * vv) continue;  // parallel rays: no depth
+        const double s = (uc * vv - uv * vc) / det;
+        const double t = (uv * uc - uu * vc) / det;
+        if (s <= 0 || t <= 0) continue;  // behind the camera or the projector
+        point = 0.5 * (s * u + c + t * v);
+        gap = (s * u - c - t * v).norm();
+      } else {
+        // A sub-pixel column and a whole-pixel row: the camera ray meets the plane of the column
+        // (through c, spanned by its rays at the decoded row and the next), so the point stays on
+        // its camera ray and the row's rounding does not move it. Assumes a baseline across the
+        // projector's columns, as phase shifting along columns does.
+        const int next_row =
+            map.row[i] + 1 < calibration_.projector.height ? map.row[i] + 1 : map.row[i] - 1;
+        const Eigen::Vector3d normal = v.cross(projector_ray(map, i, next_row).cast<double>());
+        const double un = u.dot(normal);
+        if (std::abs(un) < 1e-9 * u.norm() * normal.norm()) continue;  // ray in the plane
+        const double s = c.dot(normal) / un;
+        point = s * u;
+        if (s <= 0 || (point - c).dot(v) <= 0) continue;  // behind the camera or the projector
+        gap = (point - c).cross(v).norm() / v.norm();
+      }
+      view.points[i] = point.cast<float>();
+      out.ray_gap_mm[i] = static_cast<float>(gap);
       view.valid[i] = 1;
       if (white) {
         const std::uint8_t g = white->pixels[i];
@@ -115,9 +134,9 @@ TriangulatedView Triangulator::triangulate(const DecodedMap& map, const GreyImag
   return out;
 }
 
-Eigen::Vector3f Triangulator::projector_ray(const DecodedMap& map, std::size_t i) const {
+Eigen::Vector3f Triangulator::projector_ray(const DecodedMap& map, std::size_t i, int row) const {
   const int width = calibration_.projector.width;
-  const std::size_t row_start = static_cast<std::size_t>(map.row[i]) * width;
+  const std::size_t row_start = static_cast<std::size_t>(row) * width;
   if (map.column_fine.empty()) return projector_rays_[row_start + map.column[i]];
   // Sub-pixel column: linear between the rays of its two neighbouring projector pixels.
   const float x = std::clamp(map.column_fine[i], 0.f, float(width - 1));
@@ -135,6 +154,43 @@ Eigen::Vector3d Triangulator::camera_ray(const Eigen::Vector2d& pixel) const {
   cv::undistortPoints(in, out, matrix, distortion, cv::noArray(), cv::noArray(),
                       cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 50, 1e-12));
   return {out[0].x, out[0].y, 1.0};
+}
+
+void estimate_grid_normals(OrganisedView& view, float max_edge_mm) {
+  const int w = view.width, h = view.height;
+  std::vector<Vec3f> normals(view.cells(),
+                             Vec3f::Constant(std::numeric_limits<float>::quiet_NaN()));
+  auto usable = [&](int x, int y, const Vec3f& from) {
+    if (x < 0 || y < 0 || x >= w || y >= h) return false;
+    const std::size_t j = static_cast<std::size_t>(y) * w + x;
+    return view.valid[j] && (view.points[j] - from).norm() <= max_edge_mm;
+  };
+  // The difference across a cell in one direction: both neighbours where usable, else one side.
+  auto difference = [&](int x, int y, int dx, int dy, Vec3f& out) {
+    const Vec3f& p = view.points[static_cast<std::size_t>(y) * w + x];
+    const bool ahead = usable(x + dx, y + dy, p), behind = usable(x - dx, y - dy, p);
+    if (!ahead && !behind) return false;
+    const Vec3f a = ahead ? view.points[static_cast<std::size_t>(y + dy) * w + x + dx] : p;
+    const Vec3f b = behind ? view.points[static_cast<std::size_t>(y - dy) * w + x - dx] : p;
+    out = a - b;
+    return true;
+  };
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const std::size_t i = static_cast<std::size_t>(y) * w + x;
+      if (!view.valid[i]) continue;
+      Vec3f across, down;
+      Vec3f n = Vec3f::Zero();
+      if (difference(x, y, 1, 0, across) && difference(x, y, 0, 1, down)) n = across.cross(down);
+      if (!(n.norm() > 0)) {
+        view.valid[i] = 0;
+        view.points[i] = Vec3f::Constant(std::numeric_limits<float>::quiet_NaN());
+        continue;
+      }
+      n.normalize();
+      normals[i] = n.dot(view.points[i]) > 0 ? Vec3f(-n) : n;  // towards the camera
+    }
+  view.normals = std::move(normals);
 }
 
 BoardMeasurement measure_board(const Triangulator& triangulator, const TriangulatedView& view,

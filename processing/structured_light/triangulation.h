@@ -1,6 +1,8 @@
-// Triangulation of decoded camera pixels into an organised point grid in the camera frame (mm).
+// Triangulation of decoded camera pixels into an organised point grid in the camera frame (mm):
+// the midpoint of camera and projector rays for whole projector pixels; the camera ray through the
+// plane of the projector column where phase shifting refined it.
 // The camera and projector rays depend only on the calibration, so they are undistorted once per
-// calibration (Triangulator's constructor); each scan then costs one ray–ray intersection per
+// calibration (Triangulator's constructor); each scan then costs one ray intersection per
 // decoded pixel.
 #pragma once
 
@@ -12,9 +14,15 @@
 
 namespace sherd::structured_light {
 
+// Undistorted normalised directions (x, y, 1) through every pixel of an image (row-major), rotated
+// by `rotation`.
+std::vector<Eigen::Vector3f> pixel_rays(const Intrinsics& intrinsics,
+                                        const Eigen::Matrix3d& rotation);
+
 struct TriangulatedView {
   OrganisedView view;             // camera frame, mm; colour from the white frame
-  std::vector<float> ray_gap_mm;  // per cell: distance between camera and projector rays
+  std::vector<float> ray_gap_mm;  // per cell: how far the camera ray passes from the decoded
+                                  // projector ray (large where column and row disagree)
 };
 
 class Triangulator {
@@ -29,8 +37,9 @@ class Triangulator {
   Eigen::Vector3d camera_ray(const Eigen::Vector2d& pixel) const;
 
  private:
-  // The ray of decoded pixel i's projector position (sub-pixel where map.column_fine is set).
-  Eigen::Vector3f projector_ray(const DecodedMap& map, std::size_t i) const;
+  // The ray of decoded pixel i's projector column (sub-pixel where map.column_fine is set) at
+  // projector row `row`.
+  Eigen::Vector3f projector_ray(const DecodedMap& map, std::size_t i, int row) const;
 
   ProCamCalibration calibration_;
   Eigen::Vector3d projector_centre_;  // in the camera frame
@@ -38,6 +47,12 @@ class Triangulator {
   // (rotated into the camera frame), row-major.
   std::vector<Eigen::Vector3f> camera_rays_, projector_rays_;
 };
+
+// Fills view.normals from the organised grid (the cross product of the differences to the
+// neighbours across and down, each side where valid and within `max_edge_mm`), unit and facing the
+// camera at the origin. A cell without a neighbour both ways has no normal: it is made invalid (an
+// isolated point is no surface).
+void estimate_grid_normals(OrganisedView& view, float max_edge_mm);
 
 // A scanner check against the chessboard's known geometry: a plane fitted to the triangulated
 // points inside the board's outer inner corners, the corners placed where their camera rays meet

@@ -276,7 +276,8 @@ TEST_F(StationConfigTest, UnknownEnumValueListsTheChoices) {
   EXPECT_EQ(error_of("[render]\nsection_side = \"top\"\n"),
             file() + ":2: render.section_side: expected one of right | left, got \"top\"");
   EXPECT_EQ(error_of("[scanner]\ndriver = \"kinect\"\n"),
-            file() + ":2: scanner.driver: expected one of simulated, got \"kinect\"");
+            file() + ":2: scanner.driver: expected one of simulated | structured-light-simulated | "
+                "structured-light, got \"kinect\"");
 }
 
 TEST_F(StationConfigTest, SyntaxErrorNamesFileAndLine) {

@@ -108,3 +108,53 @@ TEST_F(FakeGigECamera, AnUnknownCameraIsAClearDeviceError) {
 }
 
 }  // namespace
+
+// Hardware trigger: the features land on the camera as asked (read back over GenICam). Nothing
+// pulses the fake camera's line, so it sends no frame: the capture fails naming the line.
+TEST_F(FakeGigECamera, LineTriggerSetsTheCameraFeaturesAsRequested) {
+  AravisCameraSettings settings;
+  settings.id = "127.0.0.1";
+  settings.width = 64;
+  settings.height = 48;
+  settings.timeout_ms = 300;
+  settings.trigger = AravisCameraSettings::Trigger::kLine;
+  settings.trigger_line = "Line0";  // the fake camera's only line
+  AravisCamera camera(settings);
+  EXPECT_EQ(camera.feature("TriggerMode"), "On");
+  EXPECT_EQ(camera.feature("TriggerSource"), "Line0");
+  EXPECT_EQ(camera.feature("TriggerActivation"), "RisingEdge");
+  EXPECT_EQ(fill_.frames.load(), 0u);
+  camera.arm();
+  try {
+    camera.capture();
+    FAIL() << "a frame without a line pulse";
+  } catch (const sherd::DeviceError& e) {
+    EXPECT_NE(std::string(e.what()).find("no RisingEdge edge came on Line0"), std::string::npos)
+        << e.what();
+  }
+}
+
+TEST_F(FakeGigECamera, ALineTheCameraLacksIsAClearDeviceError) {
+  AravisCameraSettings settings;
+  settings.id = "127.0.0.1";
+  settings.trigger = AravisCameraSettings::Trigger::kLine;
+  settings.trigger_line = "Line1";
+  try {
+    AravisCamera camera(settings);
+    FAIL() << "Line1 accepted on a camera without it";
+  } catch (const sherd::DeviceError& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("no trigger source \"Line1\""), std::string::npos) << message;
+    EXPECT_NE(message.find("Line0"), std::string::npos) << message;  // what it has instead
+    EXPECT_NE(message.find("trigger_line"), std::string::npos) << message;
+  }
+}
+
+TEST_F(FakeGigECamera, AnEdgeTheCameraLacksIsAClearDeviceError) {
+  AravisCameraSettings settings;
+  settings.id = "127.0.0.1";
+  settings.trigger = AravisCameraSettings::Trigger::kLine;
+  settings.trigger_line = "Line0";
+  settings.trigger_activation = "FallingEdge";  // the fake camera knows only RisingEdge
+  EXPECT_THROW(AravisCamera camera(settings), sherd::DeviceError);
+}
