@@ -88,8 +88,9 @@ AxisEstimate estimate_axis_reference(const Cloud& sherd, const ReferenceParams& 
 // the (radius, height) half-plane, fall onto one thin profile curve (inner and outer skin), by
 // Levenberg-Marquardt with a robust (Cauchy) loss on each point's distance to the mean of its
 // neighbours in that half-plane from other azimuths (along its normal). Fracture faces (normals out
-// of the half-plane) are down-weighted. angle_sd_deg / offset_sd_mm from the covariance of the fit
-// plus a jackknife over azimuth sectors.
+// of the half-plane) are down-weighted. angle_sd_deg / offset_sd_mm from a delete-a-group
+// jackknife over azimuth sectors × height bands (each replica refits without one group's points),
+// scaled so that ±2 sd is a 95 % interval (Student's t for the jackknife's few degrees of freedom).
 struct RefineParams {
   std::size_t max_points = 4000;  // subsampled (deterministically) above this
   int rounds = 4;                 // neighbourhoods are re-found from the axis of each round
@@ -104,11 +105,11 @@ struct RefineParams {
   double max_wall_mm = 15.0;
   double fracture_weight = 0.1;
   double max_move_deg = 10.0;  // a refinement that turns the axis further diverged
-  int jackknife_sectors = 8;   // azimuth sectors left out in turn for the sds
-  // Factor on the sds: on bench_axis (seed 1, 30 sherds) the true error exceeded 2 uninflated sds
-  // for 31 % of the sherds (the jackknife sees misfit only as far as the sectors disagree); with
-  // 1.7 the 90th percentile of error / sd is about 2.
-  double sd_inflation = 1.7;
+  // Groups left out in turn for the sds: azimuth sectors × height bands. Residuals are correlated
+  // along the arc and along the profile (a wandering lip, a pulling break), so both are cut.
+  int jackknife_sectors = 4;
+  int jackknife_bands = 2;
+  double max_angle_sd_deg = 5.0;  // beyond: the axis is too poorly constrained to report
   std::uint64_t seed = 11;
 };
 AxisEstimate refine_axis(const Cloud& sherd, const AxisEstimate& start,
