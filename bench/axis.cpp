@@ -196,6 +196,7 @@ struct Row {
   double seconds = NAN, axis_deg = NAN, offset_mm = NAN, rim_diameter_pct = NAN,
          rim_percent_points = NAN, wall_mm = NAN;
   double angle_sd_deg = NAN, offset_sd_mm = NAN;
+  double rim_diameter_sd_pct = NAN;  // propagated from the axis sds (profile::MeasurementSds)
   std::string reason;
 };
 
@@ -220,6 +221,10 @@ Row evaluate(const Cloud& cloud, const Truth& truth, sherd::axis::Method method)
     if (truth.rim_diameter_mm && m.rim_diameter_mm) {
       row.rim_diameter_pct =
           100.0 * std::abs(*m.rim_diameter_mm - *truth.rim_diameter_mm) / *truth.rim_diameter_mm;
+    }
+    if (m.rim_diameter_mm && analysis.measurement_sds.rim_diameter_mm) {
+      row.rim_diameter_sd_pct =
+          100.0 * *analysis.measurement_sds.rim_diameter_mm / *m.rim_diameter_mm;
     }
     if (truth.rim_percent && m.rim_percent)
       row.rim_percent_points = std::abs(*m.rim_percent - *truth.rim_percent);
@@ -350,6 +355,7 @@ int main(int argc, char** argv) {
                                   {"angle_sd_deg", number_or_null(row.angle_sd_deg)},
                                   {"offset_sd_mm", number_or_null(row.offset_sd_mm)},
                                   {"rim_diameter_error_pct", number_or_null(row.rim_diameter_pct)},
+                                  {"rim_diameter_sd_pct", number_or_null(row.rim_diameter_sd_pct)},
                                   {"rim_percent_error_points",
                                    number_or_null(row.rim_percent_points)},
                                   {"wall_thickness_error_mm", number_or_null(row.wall_mm)},

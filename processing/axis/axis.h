@@ -93,7 +93,13 @@ AxisEstimate estimate_axis_reference(const Cloud& sherd, const ReferenceParams& 
 // scaled so that ±2 sd is a 95 % interval (Student's t for the jackknife's few degrees of freedom).
 struct RefineParams {
   std::size_t max_points = 4000;  // subsampled (deterministically) above this
-  int rounds = 4;                 // neighbourhoods are re-found from the axis of each round
+  // Neighbourhoods are re-found from the axis of each round: at least min_rounds, then until a
+  // round's step is below both settled_* (a hundredth of a degree, a hundredth of a millimetre),
+  // at most max_rounds.
+  int min_rounds = 3;
+  int max_rounds = 8;
+  double settled_tilt_rad = 1.7e-4;
+  double settled_shift_mm = 0.01;
   // Neighbourhood window in the half-plane: along the profile; across it, first round, then
   // 6 robust sds of the spread about the last round's axis, but no less than min_across_mm.
   double along_mm = 1.0;

@@ -316,7 +316,9 @@ AxisEstimate refine_axis(const Cloud& sherd, const AxisEstimate& start,
   double sigma_mm = 0.0;
   double across_mm = params.first_across_mm;
   double round_across_mm = across_mm;  // the window of the last round
-  for (int round = 0; round < params.rounds; ++round) {
+  // The last two rounds' steps (4 parameters each): how far the iteration still moves.
+  Eigen::VectorXd last_step = Eigen::VectorXd::Zero(4), step_before = Eigen::VectorXd::Zero(4);
+  for (int round = 0; round < params.max_rounds; ++round) {
     to_half_plane(problem.points, problem.normals, axis, hp);
     const auto sigma = prepare_round(problem, hp, across_mm, params);
     if (!sigma) {
@@ -333,15 +335,26 @@ AxisEstimate refine_axis(const Cloud& sherd, const AxisEstimate& start,
     if (!x.allFinite()) break;
     axis = functor.line.at(x);
     axis.point -= axis.point.dot(axis.direction) * axis.direction;
-    if (round + 1 == params.rounds) {
-      Eigen::VectorXd fx(functor.values());
-      functor(x, fx);
-      sigma_mm = std::sqrt(fx.squaredNorm() / std::max(1, functor.values() - 4));
-    }
+    step_before = last_step;
+    last_step = x;
+    Eigen::VectorXd fx(functor.values());
+    functor(x, fx);
+    sigma_mm = std::sqrt(fx.squaredNorm() / std::max(1, functor.values() - 4));
+    const bool settled = x.head<2>().norm() < params.settled_tilt_rad &&
+                         x.tail<2>().norm() < params.settled_shift_mm;
+    if (round + 1 >= params.min_rounds && settled) break;
   }
   int replicas = 0;
-  const Eigen::Matrix4d covariance =
-      sector_jackknife(problem, axis, round_across_mm, params, &replicas);
+  Eigen::Matrix4d covariance = sector_jackknife(problem, axis, round_across_mm, params, &replicas);
+  // Where the rounds stop before the axis settles (each round's neighbourhoods, found about the
+  // last axis, hold it back: the steps shrink geometrically, by a ratio q), the rest of the way is
+  // an error the jackknife cannot see: the remaining steps sum to last · q / (1 - q). It is added
+  // to the covariance as one more independent error (q from the last two steps, at most 0.9).
+  if (step_before.norm() > 0.0) {
+    const double q = std::min(0.9, last_step.norm() / step_before.norm());
+    const Eigen::VectorXd rest = last_step * (q / (1.0 - q));
+    covariance += rest * rest.transpose();
+  }
 
   const double moved_deg =
       std::acos(std::min(1.0, std::abs(axis.direction.dot(start_direction)))) / kDegToRad;
