@@ -57,6 +57,9 @@ struct Params {
   // A point fits the normal lines nearly as well as the axis (ratio of RMS distances below this):
   // sphere-like, every line through that point is an equally good axis.
   double sphere_rms_ratio = 2.0;
+  // The bounding box diagonal below which a piece is too small for an axis (the smallest sherd
+  // bench_axis breaks is 30 mm across).
+  double min_extent_mm = 20.0;
   int bootstrap_resamples = 30;
   double max_angle_sd_deg = 5.0;  // beyond: the axis is too poorly constrained to report
   std::size_t max_lines = 20000;  // larger clouds are subsampled (deterministically) first
