@@ -4,8 +4,16 @@
 // where the scanner was occluded, a random pose — and each method's axis, with profile::analyse
 // on it, is compared with the vessel's truth. Prints one JSON object per sherd and method, then a
 // summary per method and per method × fragment-size class (medians and 90th percentiles).
-//   bench_axis [--sherds 300] [--seed 1] [--density 2.5] [--methods normal-lines,refined,…]
+// --points N samples each sherd at the density that gives it about N points instead (the speed
+// line at 200 k points); --estimated-normals replaces the mesh's normals by normals estimated
+// from the sampled points (PCA over their 12 nearest neighbours, as a scanner's cloud has them).
+//   bench_axis [--sherds 300] [--seed 1] [--density 2.5 | --points 200000] [--estimated-normals]
+//              [--methods normal-lines,refined,…]
 #include "processing/axis/axis.h"
+
+#include <pcl/features/normal_3d.h>
+#include <pcl/point_cloud.h>
+#include <pcl/point_types.h>
 
 #include <CLI/CLI.hpp>
 #include <chrono>
@@ -85,10 +93,35 @@ Cloud sample_scan(const sherd::Mesh& mesh, double density, double noise_mm, int 
   return cloud;
 }
 
+// Replaces the normals by PCA normals of the points' k nearest neighbours (PCL), each turned to
+// the side of the normal it replaces: the sign a scanner takes from its viewpoint, the direction
+// from the points alone.
+void estimate_normals(Cloud& cloud) {
+  constexpr int kNeighbours = 12;
+  pcl::PointCloud<pcl::PointXYZ>::Ptr points(new pcl::PointCloud<pcl::PointXYZ>);
+  for (const auto& p : cloud.points) points->push_back(pcl::PointXYZ(p.x(), p.y(), p.z()));
+  pcl::NormalEstimation<pcl::PointXYZ, pcl::Normal> estimation;
+  estimation.setInputCloud(points);
+  estimation.setKSearch(kNeighbours);
+  pcl::PointCloud<pcl::Normal> normals;
+  estimation.compute(normals);
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    const Vec3f n(normals[i].normal_x, normals[i].normal_y, normals[i].normal_z);
+    if (!n.allFinite()) continue;  // too few neighbours: the sampled normal stays
+    cloud.normals[i] = n.dot(cloud.normals[i]) < 0.0f ? Vec3f(-n) : n;
+  }
+}
+
 // One simulated sherd: a vessel of `family`, a piece of `kind` within max_extent_mm, sampled and
 // placed by a random pose. nullopt where the vessel has no room for that kind of piece.
+struct Sampling {
+  double density = 2.5;    // points per mm² of surface
+  std::size_t points = 0;  // > 0: the density that gives about this many points instead
+  bool estimated_normals = false;
+};
+
 std::optional<std::pair<Cloud, Truth>> make_sherd(sim::Family family, sim::SherdKind kind,
-                                                  double max_extent_mm, double density,
+                                                  double max_extent_mm, const Sampling& sampling,
                                                   sim::Rng& rng) {
   const sim::VesselLimits limits{.max_diameter_mm = sim::max_vessel_diameter(kind, max_extent_mm)};
   const sim::VesselProfile profile = sim::make_vessel_profile(family, rng, limits);
@@ -101,7 +134,17 @@ std::optional<std::pair<Cloud, Truth>> make_sherd(sim::Family family, sim::Sherd
   truth.circumference_share = piece.arc_rad / (2.0 * M_PI);
   truth.has_rim = piece.has_rim;
   truth.noise_mm = rng.uniform(0.02, 0.1);
+  double density = sampling.density;
+  if (sampling.points > 0) {
+    double area = 0.0;
+    for (const auto& t : piece.mesh.triangles) {
+      const auto& P = piece.mesh.vertices.points;
+      area += 0.5 * (P[t[1]] - P[t[0]]).cross(P[t[2]] - P[t[0]]).norm();
+    }
+    density = static_cast<double>(sampling.points) / std::max(area, 1.0);
+  }
   Cloud cloud = sample_scan(piece.mesh, density, truth.noise_mm, rng.integer(0, 4), rng);
+  if (sampling.estimated_normals) estimate_normals(cloud);
   Pose pose = Pose::Identity();
   pose.linear() = random_rotation(rng);
   pose.translation() =
@@ -153,6 +196,7 @@ struct Row {
   double seconds = NAN, axis_deg = NAN, offset_mm = NAN, rim_diameter_pct = NAN,
          rim_percent_points = NAN, wall_mm = NAN;
   double angle_sd_deg = NAN, offset_sd_mm = NAN;
+  double rim_diameter_sd_pct = NAN;  // propagated from the axis sds (profile::MeasurementSds)
   std::string reason;
 };
 
@@ -177,6 +221,10 @@ Row evaluate(const Cloud& cloud, const Truth& truth, sherd::axis::Method method)
     if (truth.rim_diameter_mm && m.rim_diameter_mm) {
       row.rim_diameter_pct =
           100.0 * std::abs(*m.rim_diameter_mm - *truth.rim_diameter_mm) / *truth.rim_diameter_mm;
+    }
+    if (m.rim_diameter_mm && analysis.measurement_sds.rim_diameter_mm) {
+      row.rim_diameter_sd_pct =
+          100.0 * *analysis.measurement_sds.rim_diameter_mm / *m.rim_diameter_mm;
     }
     if (truth.rim_percent && m.rim_percent)
       row.rim_percent_points = std::abs(*m.rim_percent - *truth.rim_percent);
@@ -237,14 +285,21 @@ int main(int argc, char** argv) {
       "bench_axis: every axis method on the same simulated sherds, against the vessel's truth"};
   int sherds = 300;
   std::uint64_t seed = 1;
-  double density = 2.5;
+  Sampling sampling;
   std::string methods_arg;
   app.add_option("--sherds", sherds, "number of simulated sherds")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
   app.add_option("--seed", seed)->capture_default_str();
-  app.add_option("--density", density, "sampled points per mm² of sherd surface")
-      ->capture_default_str();
+  auto* density =
+      app.add_option("--density", sampling.density, "sampled points per mm² of sherd surface")
+          ->capture_default_str();
+  app.add_option("--points", sampling.points,
+                 "sample each sherd with about this many points (instead of --density)")
+      ->excludes(density);
+  app.add_flag("--estimated-normals", sampling.estimated_normals,
+               "normals estimated from the sampled points (PCA, 12 neighbours) instead of the "
+               "mesh's");
   app.add_option("--methods", methods_arg, "comma-separated method names (default: all)");
   CLI11_PARSE(app, argc, argv);
 
@@ -274,7 +329,7 @@ int main(int argc, char** argv) {
     sim::Rng sherd_rng = rng.fork();
     // The extent limit sets the vessel size and so the arc share of the piece (5–50 %).
     const double max_extent = sherd_rng.uniform(40.0, 220.0);
-    auto made_sherd = make_sherd(family, kind, max_extent, density, sherd_rng);
+    auto made_sherd = make_sherd(family, kind, max_extent, sampling, sherd_rng);
     if (!made_sherd) continue;
     const auto& [cloud, truth] = *made_sherd;
     const auto upright = stood_up(cloud, truth, 20.0, sherd_rng);
@@ -300,6 +355,7 @@ int main(int argc, char** argv) {
                                   {"angle_sd_deg", number_or_null(row.angle_sd_deg)},
                                   {"offset_sd_mm", number_or_null(row.offset_sd_mm)},
                                   {"rim_diameter_error_pct", number_or_null(row.rim_diameter_pct)},
+                                  {"rim_diameter_sd_pct", number_or_null(row.rim_diameter_sd_pct)},
                                   {"rim_percent_error_points",
                                    number_or_null(row.rim_percent_points)},
                                   {"wall_thickness_error_mm", number_or_null(row.wall_mm)},

@@ -69,6 +69,18 @@ nlohmann::json sherd_document(const std::string& scan_id, const std::string& she
         {"volume_ml", optional_number(m.volume_ml)},
     };
     profile = {{"outer", polyline(analysis->profile.outer)}, {"inner", polyline(analysis->profile.inner)}};
+    // Added fields: the closed section and the measurements' sds propagated from the axis's.
+    profile["section"] = polyline(analysis->profile.section);
+    const auto& sd = analysis->measurement_sds;
+    doc["measurement_sds"] = {
+        {"rim_diameter_mm", optional_number(sd.rim_diameter_mm)},
+        {"base_diameter_mm", optional_number(sd.base_diameter_mm)},
+        {"max_diameter_mm", sd.max_diameter_mm},
+        {"height_mm", sd.height_mm},
+        {"wall_thickness_mean_mm", sd.wall_thickness_mean_mm},
+        {"rim_percent", optional_number(sd.rim_percent)},
+        {"rim_inclination_deg", optional_number(sd.rim_inclination_deg)},
+    };
     doc["arc_deg"] = analysis->arc_deg;
     doc["has_rim"] = analysis->has_rim;
     doc["has_base"] = analysis->has_base;

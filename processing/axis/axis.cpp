@@ -307,6 +307,16 @@ AxisEstimate estimate_axis(const Cloud& sherd, const Params& params) {
                                            sherd.size(), kMinLines));
   }
 
+  // Too small: over a few millimetres every smooth wall fits many axes.
+  Vec3f lo = sherd.points[0], hi = sherd.points[0];
+  for (const auto& p : sherd.points) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+  const double extent_mm = (hi - lo).norm();
+  if (extent_mm < params.min_extent_mm) {
+    return not_found(estimate, fmt::format("too small: {:.1f} mm across (at least {:.0f} mm "
+                                           "needed for an axis)",
+                                           extent_mm, params.min_extent_mm));
+  }
+
   std::mt19937_64 rng(params.seed);
   const auto [chosen, centroid] = detail::subsample(sherd, params.max_lines, rng);
   // All points take part in the normal re-estimation, only the chosen ones become lines.

@@ -57,6 +57,9 @@ struct Params {
   // A point fits the normal lines nearly as well as the axis (ratio of RMS distances below this):
   // sphere-like, every line through that point is an equally good axis.
   double sphere_rms_ratio = 2.0;
+  // The bounding box diagonal below which a piece is too small for an axis (the smallest sherd
+  // bench_axis breaks is 30 mm across).
+  double min_extent_mm = 20.0;
   int bootstrap_resamples = 30;
   double max_angle_sd_deg = 5.0;  // beyond: the axis is too poorly constrained to report
   std::size_t max_lines = 20000;  // larger clouds are subsampled (deterministically) first
@@ -88,11 +91,18 @@ AxisEstimate estimate_axis_reference(const Cloud& sherd, const ReferenceParams& 
 // the (radius, height) half-plane, fall onto one thin profile curve (inner and outer skin), by
 // Levenberg-Marquardt with a robust (Cauchy) loss on each point's distance to the mean of its
 // neighbours in that half-plane from other azimuths (along its normal). Fracture faces (normals out
-// of the half-plane) are down-weighted. angle_sd_deg / offset_sd_mm from the covariance of the fit
-// plus a jackknife over azimuth sectors.
+// of the half-plane) are down-weighted. angle_sd_deg / offset_sd_mm from a delete-a-group
+// jackknife over azimuth sectors × height bands (each replica refits without one group's points),
+// scaled so that ±2 sd is a 95 % interval (Student's t for the jackknife's few degrees of freedom).
 struct RefineParams {
   std::size_t max_points = 4000;  // subsampled (deterministically) above this
-  int rounds = 4;                 // neighbourhoods are re-found from the axis of each round
+  // Neighbourhoods are re-found from the axis of each round: at least min_rounds, then until a
+  // round's step is below both settled_* (a hundredth of a degree, a hundredth of a millimetre),
+  // at most max_rounds.
+  int min_rounds = 3;
+  int max_rounds = 8;
+  double settled_tilt_rad = 1.7e-4;
+  double settled_shift_mm = 0.01;
   // Neighbourhood window in the half-plane: along the profile; across it, first round, then
   // 6 robust sds of the spread about the last round's axis, but no less than min_across_mm.
   double along_mm = 1.0;
@@ -104,11 +114,11 @@ struct RefineParams {
   double max_wall_mm = 15.0;
   double fracture_weight = 0.1;
   double max_move_deg = 10.0;  // a refinement that turns the axis further diverged
-  int jackknife_sectors = 8;   // azimuth sectors left out in turn for the sds
-  // Factor on the sds: on bench_axis (seed 1, 30 sherds) the true error exceeded 2 uninflated sds
-  // for 31 % of the sherds (the jackknife sees misfit only as far as the sectors disagree); with
-  // 1.7 the 90th percentile of error / sd is about 2.
-  double sd_inflation = 1.7;
+  // Groups left out in turn for the sds: azimuth sectors × height bands. Residuals are correlated
+  // along the arc and along the profile (a wandering lip, a pulling break), so both are cut.
+  int jackknife_sectors = 4;
+  int jackknife_bands = 2;
+  double max_angle_sd_deg = 5.0;  // beyond: the axis is too poorly constrained to report
   std::uint64_t seed = 11;
 };
 AxisEstimate refine_axis(const Cloud& sherd, const AxisEstimate& start,

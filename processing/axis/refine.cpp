@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <random>
 #include <unordered_map>
 
@@ -183,6 +184,115 @@ double median_of(std::vector<double> v) {
   return v[v.size() / 2];
 }
 
+// The two-sided 95 % quantile of Student's t with `dof` degrees of freedom (published table; the
+// jackknife has at most a dozen).
+double student_t_975(int dof) {
+  static constexpr double kTable[] = {12.706, 4.303, 3.182, 2.776, 2.571, 2.447,
+                                      2.365,  2.306, 2.262, 2.228, 2.201, 2.179};
+  constexpr int kRows = sizeof(kTable) / sizeof(kTable[0]);
+  return dof < 1 ? kTable[0] : dof <= kRows ? kTable[dof - 1] : 1.959964 + 2.4 / dof;
+}
+
+// The sherd's arc about an axis: the circular mean of the azimuths (they may wrap at ±pi) and the
+// extent either side of it.
+struct Arc {
+  double middle = 0.0, lo = M_PI, hi = -M_PI;
+  // Which of `sectors` equal parts of the arc the azimuth phi falls in.
+  int sector(double phi, int sectors) const {
+    const double a = std::remainder(phi - middle, 2 * M_PI);
+    return std::clamp(static_cast<int>((a - lo) / (hi - lo + 1e-12) * sectors), 0, sectors - 1);
+  }
+};
+Arc arc_of(const std::vector<HalfPlanePoint>& hp) {
+  double sum_sin = 0.0, sum_cos = 0.0;
+  for (const auto& p : hp) sum_sin += std::sin(p.phi), sum_cos += std::cos(p.phi);
+  Arc arc;
+  arc.middle = std::atan2(sum_sin, sum_cos);
+  for (const auto& p : hp) {
+    const double a = std::remainder(p.phi - arc.middle, 2 * M_PI);
+    arc.lo = std::min(arc.lo, a);
+    arc.hi = std::max(arc.hi, a);
+  }
+  return arc;
+}
+
+constexpr std::size_t kMinUsed = 100;  // residuals below which a round has nothing to fit
+
+// One round's fixed part about the current axis (hp): neighbourhoods from at least 1/8 of the
+// sherd's arc away, face weights (fracture faces and the lip count params.fracture_weight of a
+// skin point) and the Cauchy scale from the residuals (MAD). Returns the robust sd of the
+// residuals, or nullopt when fewer than kMinUsed points have a neighbourhood.
+std::optional<double> prepare_round(Problem& problem, const std::vector<HalfPlanePoint>& hp,
+                                    double across_mm, const RefineParams& params) {
+  const Arc arc = arc_of(hp);
+  find_neighbourhoods(problem, hp, params.along_mm, across_mm, (arc.hi - arc.lo) / 8.0,
+                      params.max_neighbours);
+  if (problem.used.size() < kMinUsed) return std::nullopt;
+  const std::vector<bool> skin = skin_points(hp, params.max_wall_mm, std::max(0.5, across_mm / 2));
+  problem.sqrt_face_weight.resize(problem.used.size());
+  std::vector<double> absolute(problem.used.size());
+  for (std::size_t k = 0; k < problem.used.size(); ++k) {
+    problem.sqrt_face_weight[k] = skin[problem.used[k]] ? 1.0 : std::sqrt(params.fracture_weight);
+    absolute[k] = std::abs(local_line_distance(hp, problem.used[k], problem.neighbours[k]));
+  }
+  const double sigma = 1.4826 * median_of(absolute);
+  problem.cauchy_scale_mm = std::max(2.385 * sigma, 0.01);  // Cauchy's 95 % efficiency constant
+  return sigma;
+}
+
+// Covariance of the 4 axis parameters about `axis` by a delete-a-group jackknife over azimuth
+// sectors. Each replica repeats the last round — neighbourhoods, weights, fit — on the points
+// outside one sector, so that the sector's points neither own a residual nor serve as anyone's
+// neighbour. Residuals are not independent (neighbouring points share neighbours and the same
+// local misfit of the profile, a break that pulls, a lip that wanders), so the Gauss-Newton
+// covariance σ²(JᵀJ)⁻¹ is too small by an unknown factor; a group jackknife needs no model of that
+// correlation, only groups longer than its reach (an eighth of the arc against a neighbourhood
+// window of a few mm). Var = (g-1)/g Σ (x_i - x̄)(x_i - x̄)ᵀ over the g replicas (Efron & Stein).
+// Zero when fewer than two replicas could be fitted.
+Eigen::Matrix4d sector_jackknife(const Problem& full, const Line& axis, double across_mm,
+                                 const RefineParams& params, int* replicas_fitted) {
+  std::vector<HalfPlanePoint> hp;
+  to_half_plane(full.points, full.normals, axis, hp);
+  const Arc arc = arc_of(hp);
+  const int sectors = params.jackknife_sectors, bands = params.jackknife_bands;
+  // Height bands split at quantiles of the points' heights.
+  std::vector<double> heights;
+  for (const auto& p : hp) heights.push_back(p.rh.y());
+  std::sort(heights.begin(), heights.end());
+  auto band_of = [&](double h) {
+    int b = 0;
+    while (b + 1 < bands && h > heights[heights.size() * (b + 1) / bands]) ++b;
+    return b;
+  };
+  std::vector<Eigen::VectorXd> replicas;
+  for (int group = 0; group < sectors * bands; ++group) {
+    Problem part;
+    for (std::size_t i = 0; i < full.points.size(); ++i) {
+      if (arc.sector(hp[i].phi, sectors) * bands + band_of(hp[i].rh.y()) == group) continue;
+      part.points.push_back(full.points[i]);
+      part.normals.push_back(full.normals[i]);
+    }
+    if (part.points.size() == full.points.size()) continue;  // an empty sector changes nothing
+    std::vector<HalfPlanePoint> part_hp;
+    to_half_plane(part.points, part.normals, axis, part_hp);
+    if (!prepare_round(part, part_hp, across_mm, params)) continue;
+    const ConsistencyFunctor functor{
+        .problem = &part, .line = detail::LineAboutStart(axis), .hp = {}};
+    // From the full fit's axis, a replica is a small step away.
+    const Eigen::VectorXd x = detail::minimise_line(functor, 40);
+    if (x.allFinite()) replicas.push_back(x);
+  }
+  *replicas_fitted = static_cast<int>(replicas.size());
+  Eigen::Matrix4d covariance = Eigen::Matrix4d::Zero();
+  if (replicas.size() < 2) return covariance;
+  Eigen::VectorXd mean = Eigen::VectorXd::Zero(4);
+  for (const auto& x : replicas) mean += x;
+  mean /= static_cast<double>(replicas.size());
+  for (const auto& x : replicas) covariance += (x - mean) * (x - mean).transpose();
+  const double g = static_cast<double>(replicas.size());
+  return (g - 1.0) / g * covariance;
+}
+
 }  // namespace
 
 AxisEstimate refine_axis(const Cloud& sherd, const AxisEstimate& start,
@@ -203,45 +313,21 @@ AxisEstimate refine_axis(const Cloud& sherd, const AxisEstimate& start,
   axis.point -= axis.point.dot(axis.direction) * axis.direction;
 
   std::vector<HalfPlanePoint> hp;
-  Eigen::Matrix4d covariance = Eigen::Matrix4d::Zero();
   double sigma_mm = 0.0;
   double across_mm = params.first_across_mm;
-  for (int round = 0; round < params.rounds; ++round) {
+  double round_across_mm = across_mm;  // the window of the last round
+  // The last two rounds' steps (4 parameters each): how far the iteration still moves.
+  Eigen::VectorXd last_step = Eigen::VectorXd::Zero(4), step_before = Eigen::VectorXd::Zero(4);
+  for (int round = 0; round < params.max_rounds; ++round) {
     to_half_plane(problem.points, problem.normals, axis, hp);
-    // The sherd's arc about the axis, from its circular mean (the azimuths may wrap at ±pi).
-    double sum_sin = 0.0, sum_cos = 0.0;
-    for (const auto& p : hp) sum_sin += std::sin(p.phi), sum_cos += std::cos(p.phi);
-    const double phi_mid = std::atan2(sum_sin, sum_cos);
-    double phi_lo = M_PI, phi_hi = -M_PI;
-    for (const auto& p : hp) {
-      const double a = std::remainder(p.phi - phi_mid, 2 * M_PI);
-      phi_lo = std::min(phi_lo, a);
-      phi_hi = std::max(phi_hi, a);
-    }
-    // Neighbours from at least 1/8 of the sherd's arc away.
-    find_neighbourhoods(problem, hp, params.along_mm, across_mm, (phi_hi - phi_lo) / 8.0,
-                        params.max_neighbours);
-    constexpr std::size_t kMinUsed = 100;
-    if (problem.used.size() < kMinUsed) {
+    const auto sigma = prepare_round(problem, hp, across_mm, params);
+    if (!sigma) {
       estimate.method = start.method;  // nothing to refine with: the start stands
       return estimate;
     }
-    // Fracture faces and the lip count a tenth of a skin point.
-    const std::vector<bool> skin =
-        skin_points(hp, params.max_wall_mm, std::max(0.5, across_mm / 2));
-    problem.sqrt_face_weight.resize(problem.used.size());
-    for (std::size_t k = 0; k < problem.used.size(); ++k) {
-      problem.sqrt_face_weight[k] = skin[problem.used[k]] ? 1.0 : std::sqrt(params.fracture_weight);
-    }
-    // The Cauchy scale from the residuals about the current axis (MAD).
-    std::vector<double> absolute(problem.used.size());
-    for (std::size_t k = 0; k < problem.used.size(); ++k) {
-      absolute[k] = std::abs(local_line_distance(hp, problem.used[k], problem.neighbours[k]));
-    }
-    const double sigma = 1.4826 * median_of(absolute);
-    problem.cauchy_scale_mm = std::max(2.385 * sigma, 0.01);  // Cauchy's 95 % efficiency constant
     // The next round's window across the profile: wide against the spread about this round's axis.
-    across_mm = std::max(params.min_across_mm, 6.0 * sigma);
+    round_across_mm = across_mm;
+    across_mm = std::max(params.min_across_mm, 6.0 * *sigma);
 
     const ConsistencyFunctor functor{
         .problem = &problem, .line = detail::LineAboutStart(axis), .hp = {}};
@@ -249,52 +335,30 @@ AxisEstimate refine_axis(const Cloud& sherd, const AxisEstimate& start,
     if (!x.allFinite()) break;
     axis = functor.line.at(x);
     axis.point -= axis.point.dot(axis.direction) * axis.direction;
-
-    if (round + 1 == params.rounds) {
-      // Covariance of the 4 parameters, Gauss-Newton: σ² (JᵀJ)⁻¹, at the solution; it sees the
-      // noise only. What it misses — a profile that is not quite one curve, a break that pulls —
-      // differs from one part of the sherd to another, so a jackknife over azimuth sectors is
-      // added: the fit again without each sector's residuals in turn.
-      Eigen::VectorXd fx(functor.values());
-      functor(x, fx);
-      Eigen::MatrixXd jacobian(functor.values(), 4);
-      Eigen::NumericalDiff<ConsistencyFunctor>(functor).df(x, jacobian);
-      const double dof = std::max(1, functor.values() - 4);
-      sigma_mm = std::sqrt(fx.squaredNorm() / dof);
-      covariance = sigma_mm * sigma_mm * (jacobian.transpose() * jacobian).inverse();
-      const int sectors = params.jackknife_sectors;
-      const std::vector<double> weights = problem.sqrt_face_weight;
-      std::vector<Eigen::VectorXd> replicas;
-      for (int sector = 0; sector < sectors; ++sector) {
-        int left_out = 0;
-        for (std::size_t k = 0; k < problem.used.size(); ++k) {
-          const double a = std::remainder(hp[problem.used[k]].phi - phi_mid, 2 * M_PI);
-          const int of = std::min(
-              sectors - 1, static_cast<int>((a - phi_lo) / (phi_hi - phi_lo + 1e-12) * sectors));
-          const bool out = of == sector;
-          problem.sqrt_face_weight[k] = out ? 0.0 : weights[k];
-          left_out += out;
-        }
-        if (left_out == 0) continue;
-        const Eigen::VectorXd y = detail::minimise_line(functor, 40, x);
-        if (y.allFinite()) replicas.push_back(y);
-      }
-      problem.sqrt_face_weight = weights;
-      if (replicas.size() >= 2) {
-        Eigen::VectorXd mean = Eigen::VectorXd::Zero(4);
-        for (const auto& y : replicas) mean += y;
-        mean /= static_cast<double>(replicas.size());
-        Eigen::Matrix4d spread = Eigen::Matrix4d::Zero();
-        for (const auto& y : replicas) spread += (y - mean) * (y - mean).transpose();
-        const double n = static_cast<double>(replicas.size());
-        covariance += (n - 1.0) / n * spread;
-      }
-    }
+    step_before = last_step;
+    last_step = x;
+    Eigen::VectorXd fx(functor.values());
+    functor(x, fx);
+    sigma_mm = std::sqrt(fx.squaredNorm() / std::max(1, functor.values() - 4));
+    const bool settled = x.head<2>().norm() < params.settled_tilt_rad &&
+                         x.tail<2>().norm() < params.settled_shift_mm;
+    if (round + 1 >= params.min_rounds && settled) break;
+  }
+  int replicas = 0;
+  Eigen::Matrix4d covariance = sector_jackknife(problem, axis, round_across_mm, params, &replicas);
+  // Where the rounds stop before the axis settles (each round's neighbourhoods, found about the
+  // last axis, hold it back: the steps shrink geometrically, by a ratio q), the rest of the way is
+  // an error the jackknife cannot see: the remaining steps sum to last · q / (1 - q). It is added
+  // to the covariance as one more independent error (q from the last two steps, at most 0.9).
+  if (step_before.norm() > 0.0) {
+    const double q = std::min(0.9, last_step.norm() / step_before.norm());
+    const Eigen::VectorXd rest = last_step * (q / (1.0 - q));
+    covariance += rest * rest.transpose();
   }
 
   const double moved_deg =
       std::acos(std::min(1.0, std::abs(axis.direction.dot(start_direction)))) / kDegToRad;
-  if (!(moved_deg <= params.max_move_deg) || !covariance.allFinite()) {
+  if (!(moved_deg <= params.max_move_deg) || !covariance.allFinite() || replicas < 2) {
     estimate.method = start.method;
     estimate.reason = fmt::format(
         "profile-consistency refinement diverged ({:.1f} deg from the start); the start stands",
@@ -305,12 +369,20 @@ AxisEstimate refine_axis(const Cloud& sherd, const AxisEstimate& start,
   estimate.direction = axis.direction;
   estimate.point = centroid + axis.point;
   estimate.rms_mm = sigma_mm;
-  // Tilt parameters are tangents of the direction change: their sds are radians. The covariance
-  // treats the residuals as independent; sd_inflation accounts for what it misses (see
-  // RefineParams).
-  estimate.angle_sd_deg =
-      params.sd_inflation * std::sqrt(covariance(0, 0) + covariance(1, 1)) / kDegToRad;
-  estimate.offset_sd_mm = params.sd_inflation * std::sqrt(covariance(2, 2) + covariance(3, 3));
+  // Tilt parameters are tangents of the direction change: their sds are radians. The variance is
+  // estimated from only replicas - 1 degrees of freedom, so that ±2 sd is the 95 % interval that
+  // a known sd would give (Student's t against the normal quantile), the sd is scaled by t / z.
+  const double t_over_z = student_t_975(replicas - 1) / 1.959964;
+  estimate.angle_sd_deg = t_over_z * std::sqrt(covariance(0, 0) + covariance(1, 1)) / kDegToRad;
+  estimate.offset_sd_mm = t_over_z * std::sqrt(covariance(2, 2) + covariance(3, 3));
+  if (estimate.angle_sd_deg > params.max_angle_sd_deg) {
+    estimate.found = false;
+    estimate.reason = fmt::format(
+        "axis poorly constrained: the profile-consistency axis varies by {:.1f} deg (sd) when "
+        "parts "
+        "of the sherd are left out (at most {:.1f} accepted)",
+        estimate.angle_sd_deg, params.max_angle_sd_deg);
+  }
   return estimate;
 }
 

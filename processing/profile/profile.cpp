@@ -71,7 +71,8 @@ struct Coverage {
   double middle_rad = 0.0;  // middle of the covered part: opposite the largest empty run
 };
 
-Coverage angular_coverage(const std::vector<double>& phis, double radius, double fill_gap_mm = 5.0) {
+Coverage angular_coverage(const std::vector<double>& phis, double radius,
+                          double fill_gap_mm = 5.0) {
   Coverage c;
   if (phis.empty()) return c;
   radius = std::max(radius, 1.0);
@@ -168,7 +169,8 @@ constexpr double kFlatEndMm = 1.0;  // a break wanders by 2 mm or more along the
 constexpr double kEndFaceMm = 1.5;  // deeper than the rounding of a lip's top
 constexpr double kRecessMm = 8.0;   // deeper than a foot ring is high (3–7 mm)
 
-EndShape end_shape(const std::vector<CylPoint>& pts, bool top, double max_radius, double arc_middle) {
+EndShape end_shape(const std::vector<CylPoint>& pts, bool top, double max_radius,
+                   double arc_middle) {
   const double sign = top ? 1.0 : -1.0;
   EndShape s;
   // Per-azimuth extreme height, in bins of ~2 mm of arc at the median radius.
@@ -184,7 +186,8 @@ EndShape end_shape(const std::vector<CylPoint>& pts, bool top, double max_radius
     const double start = by_phi[i].first;
     double extreme = -std::numeric_limits<double>::infinity();
     std::size_t n = 0;
-    for (; i < by_phi.size() && by_phi[i].first < start + bin; ++i, ++n) extreme = std::max(extreme, by_phi[i].second);
+    for (; i < by_phi.size() && by_phi[i].first < start + bin; ++i, ++n)
+      extreme = std::max(extreme, by_phi[i].second);
     if (n >= 3) extremes.push_back({start, extreme});
   }
   if (extremes.size() >= 5) {
@@ -200,7 +203,8 @@ EndShape end_shape(const std::vector<CylPoint>& pts, bool top, double max_radius
     }
     const Eigen::VectorXd trend = design.colPivHouseholderQr().solve(heights);
     std::vector<double> residual(middle.size());
-    for (std::size_t k = 0; k < middle.size(); ++k) residual[k] = heights[k] - design.row(k).dot(trend);
+    for (std::size_t k = 0; k < middle.size(); ++k)
+      residual[k] = heights[k] - design.row(k).dot(trend);
     std::sort(residual.begin(), residual.end());
     const double spread = residual[residual.size() * 9 / 10] - residual[residual.size() / 10];
     s.level = spread <= kFlatEndMm;
@@ -238,11 +242,12 @@ EndKind classify(const EndShape& e, double wall_mm) {
   constexpr double kWiderThanWall = 1.2;  // a foot ring is ≥ 1.3 walls wide, a flat lip 1
   constexpr double kFootRing = 0.9;       // a foot ring's end, allowing for a thick floor's wall
   constexpr double kRecessedUnderside = 2.5;
-  constexpr double kLipTop = 0.2;         // a rounded lip's top faces out over ~0.5 wall
+  constexpr double kLipTop = 0.2;  // a rounded lip's top faces out over ~0.5 wall
   if (e.reaches_axis) return EndKind::Base;
   if (!e.level) return EndKind::Fracture;
   if (e.end_face_span_mm > kWiderThanWall * wall_mm ||
-      (e.end_face_span_mm > kFootRing * wall_mm && e.near_face_span_mm > kRecessedUnderside * wall_mm)) {
+      (e.end_face_span_mm > kFootRing * wall_mm &&
+       e.near_face_span_mm > kRecessedUnderside * wall_mm)) {
     return EndKind::Base;
   }
   return e.end_face_span_mm >= kLipTop * wall_mm ? EndKind::Lip : EndKind::Fracture;
@@ -268,7 +273,8 @@ Orientation orient(const std::vector<CylPoint>& pts, double wall_mm, double arc_
   const EndShape bottom_shape = end_shape(pts, false, max_r, arc_middle);
   const EndKind top = classify(top_shape, wall_mm), bottom = classify(bottom_shape, wall_mm);
   auto mean_radius_near_end = [&](bool at_top) {
-    double end = at_top ? -std::numeric_limits<double>::infinity() : std::numeric_limits<double>::infinity();
+    double end =
+        at_top ? -std::numeric_limits<double>::infinity() : std::numeric_limits<double>::infinity();
     for (const auto& p : pts) end = at_top ? std::max(end, p.h) : std::min(end, p.h);
     double sum = 0.0;
     int n = 0;
@@ -348,7 +354,8 @@ struct SectionPoint {
 
 // The section slab around `azimuth`, without radial fracture faces (normals mostly along the
 // circumference, so little of them is left in the (r, z) half-plane).
-std::vector<SectionPoint> section_slab(const std::vector<CylPoint>& pts, double azimuth, double half_width) {
+std::vector<SectionPoint> section_slab(const std::vector<CylPoint>& pts, double azimuth,
+                                       double half_width) {
   std::vector<SectionPoint> section;
   for (const auto& p : pts) {
     if (std::abs(wrap_angle(p.phi - azimuth)) > half_width) continue;
@@ -467,7 +474,8 @@ Polyline2 skin_polyline(const std::vector<Vec2>& pts) {
   const int end_a = farthest(geodesic_from(graph, top));
   std::vector<double> from_a = geodesic_from(graph, end_a);
   const int end_b = farthest(from_a);
-  const std::vector<double> s = pts[end_a].y() <= pts[end_b].y() ? from_a : geodesic_from(graph, end_b);
+  const std::vector<double> s =
+      pts[end_a].y() <= pts[end_b].y() ? from_a : geodesic_from(graph, end_b);
 
   const double length = s[pts[end_a].y() <= pts[end_b].y() ? end_b : end_a];
   const int bins = static_cast<int>(length / kStepMm) + 1;
@@ -541,29 +549,48 @@ double volume_under_inner_mm3(const Polyline2& inner) {
   return std::abs(v);
 }
 
+Analysis analyse_about(const Cloud& sherd, const axis::AxisEstimate& axis, const Params& params,
+                       const Orientation* fixed);
+MeasurementSds propagate_sds(const Cloud& sherd, const Analysis& base, const Params& params);
+
 }  // namespace
 
 Analysis analyse(const Cloud& sherd, const axis::AxisEstimate& axis, const Params& params) {
   if (!axis.found) {
-    throw InputError(fmt::format("profile: the sherd has no axis ({}); a profile needs a found "
-                                 "axis, skip this sherd or estimate its axis first",
-                                 axis.reason));
+    throw InputError(
+        fmt::format("profile: the sherd has no axis ({}); a profile needs a found "
+                    "axis, skip this sherd or estimate its axis first",
+                    axis.reason));
   }
   if (!sherd.has_normals()) {
     throw InputError("profile: the sherd has no normals; compute normals before profile analysis");
   }
   for (std::size_t i = 0; i < sherd.size(); ++i) {
     if (!sherd.points[i].allFinite() || !sherd.normals[i].allFinite()) {
-      throw InputError(fmt::format("profile: point {} of {} has a non-finite coordinate or normal; "
-                                   "remove invalid points before processing",
-                                   i, sherd.size()));
+      throw InputError(
+          fmt::format("profile: point {} of {} has a non-finite coordinate or normal; "
+                      "remove invalid points before processing",
+                      i, sherd.size()));
     }
   }
   if (sherd.size() < 50) {
-    throw ProcessingError(fmt::format("profile: only {} points in the sherd, at least 50 needed",
-                                      sherd.size()));
+    throw ProcessingError(
+        fmt::format("profile: only {} points in the sherd, at least 50 needed", sherd.size()));
   }
 
+  Analysis result = analyse_about(sherd, axis, params, nullptr);
+  if (params.propagate_sds && (axis.angle_sd_deg > 0.0 || axis.offset_sd_mm > 0.0)) {
+    result.measurement_sds = propagate_sds(sherd, result, params);
+  }
+  return result;
+}
+
+namespace {
+
+// The analysis about `axis`: oriented by the ends' shapes, or, with `fixed`, as `fixed` says
+// (about a perturbed axis the orientation stays that of the unperturbed one).
+Analysis analyse_about(const Cloud& sherd, const axis::AxisEstimate& axis, const Params& params,
+                       const Orientation* fixed) {
   // Provisional frame: orientation first, then the final frame with z from base to rim.
   Frame frame = frame_about(axis.point, axis.direction);
   std::vector<CylPoint> pts = cylindrical(sherd, frame);
@@ -575,13 +602,14 @@ Analysis analyse(const Cloud& sherd, const axis::AxisEstimate& axis, const Param
   Coverage arc = sherd_arc();
   const double half_width = params.section_half_width_deg * kDegToRad;
   // The wall thickness (orientation-free) sets the scale at which an end's face is a lip or a base.
-  const auto provisional_wall =
-      median_through(through_wall(section_slab(pts, section_azimuths(pts, half_width, arc.middle_rad)[0], half_width)));
+  const auto provisional_wall = median_through(through_wall(
+      section_slab(pts, section_azimuths(pts, half_width, arc.middle_rad)[0], half_width)));
   if (!provisional_wall) {
-    throw ProcessingError("profile: no two skins a wall apart in the section; the scan shows only one "
-                          "side of the sherd, scan both faces");
+    throw ProcessingError(
+        "profile: no two skins a wall apart in the section; the scan shows only one "
+        "side of the sherd, scan both faces");
   }
-  const Orientation orientation = orient(pts, *provisional_wall, arc.middle_rad);
+  const Orientation orientation = fixed ? *fixed : orient(pts, *provisional_wall, arc.middle_rad);
   if (orientation.flip) {
     frame = frame_about(axis.point, -axis.direction);
     pts = cylindrical(sherd, frame);
@@ -609,6 +637,9 @@ Analysis analyse(const Cloud& sherd, const axis::AxisEstimate& axis, const Param
     result.profile.outer = skin_polyline(outer_pts);
     result.profile.inner = skin_polyline(inner_pts);
     if (result.profile.outer.size() >= 2 && result.profile.inner.size() >= 2) {
+      result.profile.section = result.profile.outer;
+      result.profile.section.insert(result.profile.section.end(), result.profile.inner.rbegin(),
+                                    result.profile.inner.rend());
       result.profile.section_angle_rad = wrap_angle(azimuth - arc.middle_rad);
       const Vec3d section_x = std::cos(azimuth) * frame.x + std::sin(azimuth) * frame.y;
       result.sherd_to_world.linear().col(0) = section_x;
@@ -626,9 +657,10 @@ Analysis analyse(const Cloud& sherd, const axis::AxisEstimate& axis, const Param
     }
   }
   if (!missing.empty()) {
-    throw ProcessingError(fmt::format("profile: {}, nor does any other candidate section; the scan misses "
-                                      "one side of the sherd: scan both faces",
-                                      missing));
+    throw ProcessingError(
+        fmt::format("profile: {}, nor does any other candidate section; the scan misses "
+                    "one side of the sherd: scan both faces",
+                    missing));
   }
 
   Measurements& m = result.measurements;
@@ -649,10 +681,12 @@ Analysis analyse(const Cloud& sherd, const axis::AxisEstimate& axis, const Param
     const double top = section_top;
     auto rim = outer.end();
     for (auto it = outer.begin(); it != outer.end(); ++it) {
-      if ((*it)[1] >= top - params.rim_band_mm && (rim == outer.end() || (*it)[0] > (*rim)[0])) rim = it;
+      if ((*it)[1] >= top - params.rim_band_mm && (rim == outer.end() || (*it)[0] > (*rim)[0]))
+        rim = it;
     }
     if (rim == outer.end()) {
-      rim = std::max_element(outer.begin(), outer.end(), [](const auto& a, const auto& b) { return a[1] < b[1]; });
+      rim = std::max_element(outer.begin(), outer.end(),
+                             [](const auto& a, const auto& b) { return a[1] < b[1]; });
     }
     m.rim_diameter_mm = 2.0 * (*rim)[0];
     std::vector<double> rim_phi;
@@ -674,9 +708,10 @@ Analysis analyse(const Cloud& sherd, const axis::AxisEstimate& axis, const Param
     }
   }
   if (result.has_base) {
-    const double lowest = std::min_element(outer.begin(), outer.end(), [](const auto& a, const auto& b) {
-                            return a[1] < b[1];
-                          })->at(1);
+    const double lowest =
+        std::min_element(outer.begin(), outer.end(), [](const auto& a, const auto& b) {
+          return a[1] < b[1];
+        })->at(1);
     double base_r = 0.0;
     for (const auto& v : outer) {
       if (v[1] <= lowest + params.rim_band_mm) base_r = std::max(base_r, v[0]);
@@ -684,10 +719,65 @@ Analysis analyse(const Cloud& sherd, const axis::AxisEstimate& axis, const Param
     m.base_diameter_mm = 2.0 * base_r;
   }
   constexpr double kCompleteArcDeg = 355.0;
-  if (arc.degrees >= kCompleteArcDeg && result.has_base && result.has_rim && result.profile.inner.size() >= 2) {
+  if (arc.degrees >= kCompleteArcDeg && result.has_base && result.has_rim &&
+      result.profile.inner.size() >= 2) {
     m.volume_ml = volume_under_inner_mm3(result.profile.inner) / 1000.0;
   }
   return result;
 }
+
+MeasurementSds propagate_sds(const Cloud& sherd, const Analysis& base, const Params& params) {
+  const Vec3d d = base.axis.direction.normalized();
+  const Vec3d e1 = frame_about(Vec3d::Zero(), d).x, e2 = d.cross(e1);
+  const double tilt = std::tan(base.axis.angle_sd_deg * kDegToRad / std::sqrt(2.0));
+  const double shift = base.axis.offset_sd_mm / std::sqrt(2.0);
+  const Orientation fixed{.flip = false,
+                          .certain = base.rim_up_certain,
+                          .has_rim = base.has_rim,
+                          .has_base = base.has_base};
+  const Measurements& m0 = base.measurements;
+  double var_rim = 0, var_base = 0, var_percent = 0, var_incl = 0, var_max = 0, var_h = 0,
+         var_wall = 0;
+  auto add = [](double& var, const std::optional<double>& a, const std::optional<double>& b) {
+    if (a && b) var += (*a - *b) * (*a - *b);
+  };
+  for (int k = 0; k < 4; ++k) {
+    axis::AxisEstimate perturbed = base.axis;
+    const Vec3d across = k % 2 == 0 ? e1 : e2;
+    if (k < 2) {
+      perturbed.direction = (d + tilt * across).normalized();
+    } else {
+      perturbed.point += shift * across;
+    }
+    Analysis a;
+    try {
+      a = analyse_about(sherd, perturbed, params, &fixed);
+    } catch (const ProcessingError&) {
+      continue;  // no section about this axis: the others still tell
+    }
+    const Measurements& m = a.measurements;
+    add(var_rim, m0.rim_diameter_mm, m.rim_diameter_mm);
+    add(var_base, m0.base_diameter_mm, m.base_diameter_mm);
+    add(var_percent, m0.rim_percent, m.rim_percent);
+    add(var_incl, m0.rim_inclination_deg, m.rim_inclination_deg);
+    add(var_max, m0.max_diameter_mm, m.max_diameter_mm);
+    add(var_h, m0.height_mm, m.height_mm);
+    add(var_wall, m0.wall_thickness_mm.mean, m.wall_thickness_mm.mean);
+  }
+  auto sd_if = [](const std::optional<double>& value, double var) {
+    return value ? std::optional<double>(std::sqrt(var)) : std::nullopt;
+  };
+  MeasurementSds sds;
+  sds.rim_diameter_mm = sd_if(m0.rim_diameter_mm, var_rim);
+  sds.base_diameter_mm = sd_if(m0.base_diameter_mm, var_base);
+  sds.rim_percent = sd_if(m0.rim_percent, var_percent);
+  sds.rim_inclination_deg = sd_if(m0.rim_inclination_deg, var_incl);
+  sds.max_diameter_mm = std::sqrt(var_max);
+  sds.height_mm = std::sqrt(var_h);
+  sds.wall_thickness_mean_mm = std::sqrt(var_wall);
+  return sds;
+}
+
+}  // namespace
 
 }  // namespace sherd::profile

@@ -17,7 +17,11 @@ using Polyline2 = std::vector<std::array<double, 2>>;  // (r, z) in mm, sherd fr
 struct Profile {
   Polyline2 outer;  // from base end towards rim end
   Polyline2 inner;
-  double section_angle_rad = 0.0;  // azimuth (about the axis, sherd frame) of the section half-plane
+  // The closed section: outer from base to rim end, then inner back from rim to base end (the
+  // last vertex joins the first, across the lower end).
+  Polyline2 section;
+  double section_angle_rad =
+      0.0;  // azimuth (about the axis, sherd frame) of the section half-plane
 };
 
 struct WallThickness {
@@ -38,6 +42,16 @@ struct Measurements {
   std::optional<double> volume_ml;
 };
 
+// Standard deviations of the measurements that the axis's uncertainty causes: each measurement
+// is taken again about the axis tilted by its angle sd and shifted by its offset sd (each in two
+// perpendicular directions, sd/√2 apiece: the sds are of 2-D quantities), and the squared
+// changes are summed (first-order propagation, the four parameters taken as independent). Null
+// where the measurement is.
+struct MeasurementSds {
+  std::optional<double> rim_diameter_mm, base_diameter_mm, rim_percent, rim_inclination_deg;
+  double max_diameter_mm = 0.0, height_mm = 0.0, wall_thickness_mean_mm = 0.0;
+};
+
 struct Analysis {
   axis::AxisEstimate axis;  // direction now points from base towards rim
   bool rim_up_certain = false;
@@ -49,11 +63,13 @@ struct Analysis {
   double arc_deg = 0.0;  // angular extent of the sherd about the axis
   Profile profile;
   Measurements measurements;
+  MeasurementSds measurement_sds;  // all zero when the axis has no sds or propagate_sds is off
 };
 
 struct Params {
   double section_half_width_deg = 2.0;  // slab of points around the section half-plane
-  double rim_band_mm = 2.0;  // points this close below the rim height count as rim
+  double rim_band_mm = 2.0;             // points this close below the rim height count as rim
+  bool propagate_sds = true;            // measurement_sds (four more analyses about perturbed axes)
 };
 
 // Orients the axis (rim up), extracts the profile and measures. `axis.found` must be true.

@@ -58,6 +58,33 @@ TEST(AxisRefine, ConvergesFromATiltedShiftedStart) {
   EXPECT_GT(refined.offset_sd_mm, 0.0);
 }
 
+// The reported sds are honest: the true error lies within 2 sd (a 95 % interval) for nearly every
+// noise draw, and the sds follow the noise (ten times the depth noise, several times the sd).
+TEST(AxisRefine, SdsCoverTheTrueErrorAndFollowTheNoise) {
+  constexpr int kDraws = 4;
+  double mean_sd[2] = {0.0, 0.0};
+  const double noise_mm[2] = {0.02, 0.2};
+  for (int level = 0; level < 2; ++level) {
+    int angle_covered = 0, offset_covered = 0;
+    for (int draw = 0; draw < kDraws; ++draw) {
+      WallOfRevolution wall = cone_wall();
+      wall.noise_mm = noise_mm[level];
+      wall.seed = 100 + draw;
+      Cloud cloud = testing::sample_wall(wall);
+      const AxisTruth truth = place(cloud, testing::arbitrary_pose(10.0 * draw));
+      const auto a = axis::estimate(cloud, axis::Method::Refined);
+      ASSERT_TRUE(a.found) << a.reason;
+      ASSERT_EQ(a.method, "normal-line-complex+ransac+lm+profile-consistency");
+      angle_covered += angle_error_deg(a, truth) <= 2.0 * a.angle_sd_deg;
+      offset_covered += offset_error_mm(a, truth) <= 2.0 * a.offset_sd_mm;
+      mean_sd[level] += a.angle_sd_deg / kDraws;
+    }
+    EXPECT_GE(angle_covered, kDraws - 1) << "noise " << noise_mm[level] << " mm";
+    EXPECT_GE(offset_covered, kDraws - 1) << "noise " << noise_mm[level] << " mm";
+  }
+  EXPECT_GT(mean_sd[1], 3.0 * mean_sd[0]);
+}
+
 TEST(AxisRefine, AStartWithoutAxisStaysWithoutAxis) {
   Cloud cloud = testing::sample_wall(cone_wall());
   axis::AxisEstimate none;

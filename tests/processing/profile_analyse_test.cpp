@@ -59,7 +59,7 @@ TEST(ProfileAnalyse, CylinderRimSherdNinetyDegrees) {
   double deepest_break = w.break_amplitude_mm;
   for (double phi = w.phi_begin_rad; phi <= w.phi_end_rad; phi += 1e-4) {
     deepest_break = std::min(deepest_break, testing::break_offset_mm(w.break_amplitude_mm, phi,
-                                                                      testing::kLowBreakPhase));
+                                                                     testing::kLowBreakPhase));
   }
   EXPECT_NEAR(m.height_mm, 50.0 - deepest_break, 0.6);
 
@@ -77,7 +77,9 @@ TEST(ProfileAnalyse, CylinderRimSherdNinetyDegrees) {
   const Eigen::Matrix3d rot = result.sherd_to_world.linear();
   EXPECT_GT(rot.col(2).dot(up), 0.9999);
   EXPECT_NEAR((rot.transpose() * rot - Eigen::Matrix3d::Identity()).norm(), 0.0, 1e-9);
-  EXPECT_LT(testing::distance_point_to_line(result.sherd_to_world.translation(), pose.translation(), up), 1e-6);
+  EXPECT_LT(
+      testing::distance_point_to_line(result.sherd_to_world.translation(), pose.translation(), up),
+      1e-6);
   // The rim vertex, mapped back to the world, lies on the true outer rim circle.
   const Vec3d rim_world = result.sherd_to_world * Vec3d(outer.back()[0], 0.0, outer.back()[1]);
   const Vec3d rim_local = pose.inverse() * rim_world;
@@ -88,10 +90,57 @@ TEST(ProfileAnalyse, CylinderRimSherdNinetyDegrees) {
   EXPECT_LT(rim_azimuth, w.phi_end_rad);
 }
 
+// The closed section (outer up, inner back down) and the measurement sds propagated from the
+// axis sds. Shifting the axis of a cylinder by s towards the section moves the measured rim radius
+// by s (away from it: by s cos α); two perpendicular shifts of offset_sd/√2 each give a diameter
+// sd of 2·offset_sd/√2 = √2·offset_sd whatever α; a shift leaves the height and the wall as they
+// are.
+TEST(ProfileAnalyse, ClosedSectionAndSdsPropagatedFromTheAxis) {
+  WallOfRevolution w;
+  w.outer = [](double s) { return Vec2(60.0, 50.0 * s); };
+  w.phi_begin_rad = 0.3;
+  w.phi_end_rad = 0.3 + M_PI / 2;
+  w.thickness_mm = 6.0;
+  w.noise_mm = 0.01;
+  Cloud cloud = testing::sample_wall(w);
+  const Pose pose = testing::arbitrary_pose();
+  cloud.transform(pose);
+  axis::AxisEstimate axis = true_axis(pose, 1.0);
+  axis.offset_sd_mm = 0.5;
+  const auto result = profile::analyse(cloud, axis);
+
+  const auto& p = result.profile;
+  ASSERT_EQ(p.section.size(), p.outer.size() + p.inner.size());
+  EXPECT_EQ(p.section.front(), p.outer.front());
+  EXPECT_EQ(p.section[p.outer.size()], p.inner.back());
+  EXPECT_EQ(p.section.back(), p.inner.front());
+  // Shoelace area of the section: the wall (6 mm) times its preserved height along the outer skin.
+  double twice_area = 0.0;
+  for (std::size_t k = 0; k < p.section.size(); ++k) {
+    const auto& a = p.section[k];
+    const auto& b = p.section[(k + 1) % p.section.size()];
+    twice_area += a[0] * b[1] - b[0] * a[1];
+  }
+  const double outer_height = p.outer.back()[1] - p.outer.front()[1];
+  EXPECT_NEAR(std::abs(twice_area) / 2.0, 6.0 * outer_height, 0.05 * 6.0 * outer_height);
+
+  const auto& sd = result.measurement_sds;
+  ASSERT_TRUE(sd.rim_diameter_mm.has_value());
+  EXPECT_NEAR(*sd.rim_diameter_mm, std::sqrt(2.0) * 0.5, 0.1);
+  EXPECT_LT(sd.height_mm, 0.05);
+  EXPECT_LT(sd.wall_thickness_mean_mm, 0.05);
+  EXPECT_FALSE(sd.base_diameter_mm.has_value());
+  // Without axis sds nothing is propagated.
+  const auto exact = profile::analyse(cloud, true_axis(pose, 1.0));
+  EXPECT_FALSE(exact.measurement_sds.rim_diameter_mm.has_value());
+}
+
 TEST(ProfileAnalyse, ConeRimSherdAfterAxisEstimation) {
   WallOfRevolution w;
   const double half_angle = 25.0 * M_PI / 180.0;
-  w.outer = [=](double s) { return Vec2(35.0 + 60.0 * s * std::sin(half_angle), 60.0 * s * std::cos(half_angle)); };
+  w.outer = [=](double s) {
+    return Vec2(35.0 + 60.0 * s * std::sin(half_angle), 60.0 * s * std::cos(half_angle));
+  };
   w.phi_end_rad = M_PI / 2;
   w.thickness_mm = 5.0;
   Cloud cloud = testing::sample_wall(w);
@@ -120,7 +169,8 @@ TEST(ProfileAnalyse, BaseSherdWithFlatUndersideIsUprightWithoutRim) {
   WallOfRevolution w;
   w.outer = [](double s) {
     const double l = s * 60.0;
-    return l <= 20.0 ? Vec2(25.0 + l, 0.0) : Vec2(45.0 + (l - 20.0) * 0.5, (l - 20.0) * std::sqrt(0.75));
+    return l <= 20.0 ? Vec2(25.0 + l, 0.0)
+                     : Vec2(45.0 + (l - 20.0) * 0.5, (l - 20.0) * std::sqrt(0.75));
   };
   w.flat_lip = false;
   w.break_amplitude_mm = 6.0;
