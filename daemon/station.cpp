@@ -154,6 +154,20 @@ constexpr double kUncalibratedTranslationSdMm = 2.0;
 constexpr double kMinTiltSdDeg = 0.01;
 constexpr double kMinTranslationSdMm = 0.05;
 
+// A simulated scanner (any kind with set_scene) as the station's scanner; placing the
+// calibration object swaps its scene for the calibration scene and back.
+template <typename SimulatedScannerKind>
+void attach_simulated_scanner(Station& station, std::unique_ptr<SimulatedScannerKind> scanner,
+                              const sim::SceneSpec& spec) {
+  SimulatedScannerKind* simulated = scanner.get();
+  station.place_calibration_object = [simulated, spec](bool on_plate) {
+    sim::SceneSpec now = spec;
+    if (on_plate) now.kind = sim::SceneKind::Calibration;
+    simulated->set_scene(sim::make_scene(now));
+  };
+  station.scanner = std::move(scanner);
+}
+
 }  // namespace
 
 Pose calibrated_scanner_pose(const config::ScannerSettings& scanner) {
@@ -257,28 +271,20 @@ Station make_station(const config::StationConfig& config) {
     const Vec3d target = calibrated_scanner_pose(c).inverse() * c.look_at_mm;
     const sl::ProCamCalibration calibration =
         sim::procam_aimed_at(camera, c.projector_offset_mm, target, c.projector_width, c.projector_height);
-    auto scanner = std::make_unique<sim::SimulatedStructuredLightScanner>(
-        sim::make_scene(spec), model.scanner_to_world, calibration, structured_light_options(c),
-        sim::StructuredLightOptics{.seed = config.simulation.seed}, std::move(plate_angle));
-    sim::SimulatedStructuredLightScanner* simulated = scanner.get();
-    station.place_calibration_object = [simulated, spec](bool on_plate) {
-      sim::SceneSpec now = spec;
-      if (on_plate) now.kind = sim::SceneKind::Calibration;
-      simulated->set_scene(sim::make_scene(now));
-    };
-    station.scanner = std::move(scanner);
+    attach_simulated_scanner(
+        station,
+        std::make_unique<sim::SimulatedStructuredLightScanner>(
+            sim::make_scene(spec), model.scanner_to_world, calibration,
+            structured_light_options(c), sim::StructuredLightOptics{.seed = config.simulation.seed},
+            std::move(plate_angle)),
+        spec);
     station.turntable = std::move(turntable);
     return station;
   }
-  auto scanner =
-      std::make_unique<sim::SimulatedScanner>(sim::make_scene(spec), model, std::move(plate_angle));
-  sim::SimulatedScanner* simulated = scanner.get();
-  station.place_calibration_object = [simulated, spec](bool on_plate) {
-    sim::SceneSpec now = spec;
-    if (on_plate) now.kind = sim::SceneKind::Calibration;
-    simulated->set_scene(sim::make_scene(now));
-  };
-  station.scanner = std::move(scanner);
+  attach_simulated_scanner(
+      station,
+      std::make_unique<sim::SimulatedScanner>(sim::make_scene(spec), model, std::move(plate_angle)),
+      spec);
   station.turntable = std::move(turntable);
   return station;
 }

@@ -12,27 +12,13 @@ using testing::AxisTruth;
 using testing::place;
 using testing::Vec2;
 using testing::WallOfRevolution;
+using testing::cone_wall;
 
 double angle_error_deg(const axis::AxisEstimate& a, const AxisTruth& t) {
   return testing::axis_angle_deg(a.direction, t.direction);
 }
 double offset_error_mm(const axis::AxisEstimate& a, const AxisTruth& t) {
   return testing::distance_point_to_line(a.point, t.point, t.direction);
-}
-
-// A conical wall, 90° of arc, broken at both ends.
-WallOfRevolution cone_wall() {
-  WallOfRevolution w;
-  const double half_angle = 25.0 * M_PI / 180.0;
-  w.outer = [=](double s) {
-    return Vec2(45.0 + 60.0 * s * std::sin(half_angle), 60.0 * s * std::cos(half_angle));
-  };
-  w.phi_begin_rad = 0.3;
-  w.phi_end_rad = 0.3 + M_PI / 2;
-  w.thickness_mm = 5.0;
-  w.flat_lip = false;
-  w.spacing_mm = 0.6;
-  return w;
 }
 
 TEST(AxisRefine, ConvergesFromATiltedShiftedStart) {

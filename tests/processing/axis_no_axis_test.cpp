@@ -11,21 +11,7 @@ namespace {
 
 using testing::Vec2;
 using testing::WallOfRevolution;
-
-// A wheel-made conical wall (as in axis_methods_test), here cut to size or deformed.
-WallOfRevolution cone_wall() {
-  WallOfRevolution w;
-  const double half_angle = 25.0 * M_PI / 180.0;
-  w.outer = [=](double s) {
-    return Vec2(45.0 + 60.0 * s * std::sin(half_angle), 60.0 * s * std::cos(half_angle));
-  };
-  w.phi_begin_rad = 0.3;
-  w.phi_end_rad = 0.3 + M_PI / 2;
-  w.thickness_mm = 5.0;
-  w.flat_lip = false;
-  w.spacing_mm = 0.6;
-  return w;
-}
+using testing::cone_wall;
 
 // A flat tile: both faces of a 60 × 40 mm slab, 10 mm thick, and its four edges.
 TEST(AxisNotFound, FlatTileIsTooFlat) {

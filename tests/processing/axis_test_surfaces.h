@@ -126,6 +126,22 @@ inline Cloud sample_wall(const WallOfRevolution& w) {
 }
 
 // An arbitrary tilted, offset placement of the sherd frame in the world.
+// A wheel-made conical wall (25° from the axis, 45 mm radius at its foot, 5 mm thick), 90° of
+// arc broken at both ends, without a lip.
+inline WallOfRevolution cone_wall() {
+  WallOfRevolution w;
+  const double half_angle = 25.0 * M_PI / 180.0;
+  w.outer = [=](double s) {
+    return Vec2(45.0 + 60.0 * s * std::sin(half_angle), 60.0 * s * std::cos(half_angle));
+  };
+  w.phi_begin_rad = 0.3;
+  w.phi_end_rad = 0.3 + M_PI / 2;
+  w.thickness_mm = 5.0;
+  w.flat_lip = false;
+  w.spacing_mm = 0.6;
+  return w;
+}
+
 inline Pose arbitrary_pose(double tilt_deg = 37.0) {
   Pose pose = Pose::Identity();
   pose.linear() = (Eigen::AngleAxisd(0.7, Vec3d::UnitZ()) *
