@@ -71,6 +71,8 @@ OrganisedView StructuredLightScanner::capture() {
       decode(gray_, all.first(gray_.frame_count()), options_.thresholds, options_.threads);
   if (options_.patterns == PatternSet::kPhase)
     refine_columns(phase_, all.subspan(gray_.frame_count()), options_.min_modulation, map);
+  else
+    refine_columns_at_edges(gray_, all.first(gray_.frame_count()), map);
   TriangulatedView view =
       triangulator_.triangulate(map, &frames[gray_.white_frame()], options_.threads);
   if (options_.max_ray_gap_mm > 0)

@@ -17,7 +17,7 @@
 namespace sherd::structured_light {
 
 enum class PatternSet {
-  kGray,   // Gray code alone: projector columns to the pixel
+  kGray,   // Gray code alone: sub-pixel columns from the stripe edges (refine_columns_at_edges)
   kPhase,  // Gray code, then phase-shifted fringes refining the column to a fraction of a pixel
 };
 

@@ -2,6 +2,7 @@
 // pixel must decode to its own column/row) and the real captures of a chessboard.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 
 #include "core/errors.h"
@@ -91,4 +92,41 @@ TEST(GrayCode, AShortSequenceIsRefusedWithAClearMessage) {
   } catch (const sherd::InputError& e) {
     EXPECT_NE(std::string(e.what()).find("3 frames given"), std::string::npos) << e.what();
   }
+}
+
+// Sub-column Gray code: a camera row that sees the projector along the line p(x) = 100.3 + 0.55·x
+// (about 1.8 camera pixels per projector column), each pixel's grey linear between the projector
+// pixels on either side of p (a blur-free projector), dark 20 and lit 200 grey levels. Truth: p(x).
+// The decoded whole column is up to half a column off; the stripe edges place every pixel between
+// two boundaries to a small fraction of a column.
+TEST(GrayCode, StripeEdgesPlaceColumnsBetweenProjectorPixels) {
+  const sl::GrayCodePatterns patterns{1024, 768};
+  const int width = 400, height = 4;
+  auto seen = [](int x) { return 100.3 + 0.55 * x; };
+  std::vector<sl::GreyImage> frames;
+  for (int f = 0; f < patterns.frame_count(); ++f) {
+    const sl::GreyImage shown = patterns.frame(f);
+    sl::GreyImage image{width, height, std::vector<std::uint8_t>(width * height)};
+    for (int y = 0; y < height; ++y)
+      for (int x = 0; x < width; ++x) {
+        const double p = seen(x), w = p - std::floor(p);
+        const int left = static_cast<int>(p), projector_row = 300 + y;
+        const double lit = (1 - w) * shown.at(left, projector_row) / 255.0 +
+                           w * shown.at(left + 1, projector_row) / 255.0;
+        image.pixels[y * width + x] = static_cast<std::uint8_t>(std::lround(20 + 180 * lit));
+      }
+    frames.push_back(std::move(image));
+  }
+  sl::DecodedMap map = sl::decode(patterns, frames, {.edge_bits = 1});
+  ASSERT_EQ(map.decoded_count(), static_cast<std::size_t>(width * height));
+  sl::refine_columns_at_edges(patterns, frames, map);
+  double worst_whole = 0, worst_fine = 0;
+  for (int y = 0; y < height; ++y)
+    for (int x = 2; x < width - 2; ++x) {  // a boundary on both sides
+      const std::size_t i = static_cast<std::size_t>(y) * width + x;
+      worst_whole = std::max(worst_whole, std::abs(map.column[i] - seen(x)));
+      worst_fine = std::max(worst_fine, std::abs(map.column_fine[i] - seen(x)));
+    }
+  EXPECT_GT(worst_whole, 0.4);
+  EXPECT_LT(worst_fine, 0.05);
 }
