@@ -111,8 +111,9 @@ json acquisition(sherd::drivers::SimulatedProjector* projector,
 // surfaces: those are reported as the share of points off the surface by more than 1 mm.
 json simulated_scene(int width, int height, std::uint64_t seed, sl::PatternSet patterns) {
   const sherd::sim::VesselOnTable scene = sherd::sim::vessel_on_table(width, height, seed);
+  const sherd::sim::StructuredLightOptics optics;
   auto world = std::make_shared<const sherd::sim::StructuredLightWorld>(
-      scene.calibration, scene.table, scene.objects, sherd::sim::StructuredLightOptics{});
+      scene.calibration, scene.table, scene.objects, optics);
   sherd::drivers::SimulatedProjector projector(1024, 768);
   sherd::sim::SimulatedGigECamera fake(world, projector);
   sherd::drivers::AravisCameraSettings settings;
@@ -122,9 +123,9 @@ json simulated_scene(int width, int height, std::uint64_t seed, sl::PatternSet p
   sherd::drivers::AravisCamera camera(settings);
   sl::ScannerOptions options;
   options.patterns = patterns;
-  // The simulated sensor's noise is 1 grey level: a shadow threshold of 15 is 15 σ. The
-  // reference's 40 suits its real captures and drops the dim, steep flanks of the vessel here.
-  options.thresholds.black = 15;
+  // The reference's 40 suits its real captures; here it would drop the dim, steep flanks of the
+  // vessel, which the simulated sensor's noise lets decode.
+  options.thresholds.black = optics.shadow_threshold();
   sl::StructuredLightScanner scanner(camera, projector, scene.calibration, options);
   const auto t0 = std::chrono::steady_clock::now();
   const sherd::OrganisedView view = scanner.capture();

@@ -187,18 +187,21 @@ void refine_columns_at_edges(const GrayCodePatterns& patterns, std::span<const G
       const int steps = std::abs(map.column[i] - map.column[j]);
       if (steps == 0 || steps > kMaxColumnsBetweenPixels) continue;
       // Each boundary between the two pixels' columns has its own bit (consecutive Gray
-      // boundaries never flip the same one), read at both pixels.
-      for (std::int32_t c = low; c < low + steps; ++c) {
+      // boundaries never flip the same one), read at both pixels. They are taken in the order
+      // the row meets them and kept in that order (noise may swap two crossings in one pixel).
+      const bool ascending = map.column[j] > map.column[i];
+      double after = 0;  // the previous boundary's place between the two pixels
+      for (int k = 0; k < steps; ++k) {
+        const std::int32_t c = ascending ? low + k : low + steps - 1 - k;  // boundary c | c+1
         const auto flipped =
             static_cast<std::uint32_t>((c ^ (c >> 1)) ^ ((c + 1) ^ ((c + 1) >> 1)));
         const int bit = std::countr_zero(flipped);
         const double ci = contrast(bit, i), cj = contrast(bit, j);
         if (!(ci != cj)) continue;  // no crossing between them (both read 0)
-        boundaries.push_back({x + std::clamp(ci / (ci - cj), 0.0, 1.0), c + 0.5});
+        after = std::max(after, std::clamp(ci / (ci - cj), 0.0, 1.0));
+        boundaries.push_back({x + after, c + 0.5});
       }
     }
-    std::sort(boundaries.begin(), boundaries.end(),
-              [](const Boundary& a, const Boundary& b) { return a.x < b.x; });
     std::size_t next = 0;  // first boundary right of x
     for (int x = 0; x < map.width; ++x) {
       const std::size_t i = row + x;

@@ -26,7 +26,7 @@ struct ScannerOptions {
   DecodeThresholds thresholds{.edge_bits = 1};
   int phase_period_px = 16;   // fringe period (kPhase)
   int phase_steps = 4;        // fringe frames (kPhase)
-  double min_modulation = 8;  // grey levels of fringe amplitude below which a pixel is dropped
+  double min_modulation = 8;  // fringe amplitude (grey levels) below which the edge column stands
   // Points whose camera and projector rays pass further apart than this are dropped: the decoded
   // column and row disagree (a pixel straddling a depth edge, a misdecoded bit). 0 = keep all.
   double max_ray_gap_mm = 0;

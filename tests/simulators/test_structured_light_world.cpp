@@ -32,8 +32,9 @@ struct Scores {
 
 Scores scan(sl::PatternSet patterns) {
   const sim::VesselOnTable scene = sim::vessel_on_table(kWidth, kHeight, 7);
-  auto world = std::make_shared<const sim::StructuredLightWorld>(
-      scene.calibration, scene.table, scene.objects, sim::StructuredLightOptics{});
+  const sim::StructuredLightOptics optics;
+  auto world = std::make_shared<const sim::StructuredLightWorld>(scene.calibration, scene.table,
+                                                                 scene.objects, optics);
   sherd::drivers::SimulatedProjector projector(1024, 768);
   Scores scores;
   {
@@ -45,7 +46,7 @@ Scores scan(sl::PatternSet patterns) {
     sherd::drivers::AravisCamera camera(settings);
     sl::ScannerOptions options;
     options.patterns = patterns;
-    options.thresholds.black = 15;  // the simulated sensor's noise is 1 grey level
+    options.thresholds.black = optics.shadow_threshold();
     sl::StructuredLightScanner scanner(camera, projector, scene.calibration, options);
     const sherd::OrganisedView view = scanner.capture();
     EXPECT_EQ(view.width, kWidth);
