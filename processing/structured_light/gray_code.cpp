@@ -153,12 +153,17 @@ DecodedMap decode(const GrayCodePatterns& patterns, std::span<const GreyImage> f
 
 void refine_columns_at_edges(const GrayCodePatterns& patterns, std::span<const GreyImage> frames,
                              DecodedMap& map, double max_gap_px) {
-  if (static_cast<int>(frames.size()) != patterns.frame_count() || frames[0].width != map.width ||
-      frames[0].height != map.height)
-    throw InputError(
-        fmt::format("structured light: {} frames of {}x{} for a {}x{} decoded map; refine with "
-                    "the sequence that was decoded",
-                    frames.size(), frames[0].width, frames[0].height, map.width, map.height));
+  if (static_cast<int>(frames.size()) != patterns.frame_count())
+    throw InputError(fmt::format(
+        "structured light: {} frames given to locate stripe edges, the Gray-code set has {}; "
+        "pass the sequence that was decoded",
+        frames.size(), patterns.frame_count()));
+  for (const GreyImage& f : frames)
+    if (f.width != map.width || f.height != map.height)
+      throw InputError(fmt::format(
+          "structured light: a {}x{} frame for a {}x{} decoded map; pass the sequence that was "
+          "decoded",
+          f.width, f.height, map.width, map.height));
   const int bits = patterns.column_bits();
   const auto& white = frames[patterns.white_frame()].pixels;
   const auto& black = frames[patterns.black_frame()].pixels;

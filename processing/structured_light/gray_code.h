@@ -87,7 +87,7 @@ DecodedMap decode(const GrayCodePatterns& patterns, std::span<const GreyImage> f
 // within one column of the decoded one: windows across a depth edge are rejected); a pixel without
 // such boundaries keeps its whole column. Assumes camera rows run across the projector columns
 // (a baseline along them), as the column-plane triangulation does. `frames` is the decoded
-// sequence.
+// sequence; throws InputError when its frame count or sizes do not match.
 void refine_columns_at_edges(const GrayCodePatterns& patterns, std::span<const GreyImage> frames,
                              DecodedMap& map, double max_gap_px = 6);
 
