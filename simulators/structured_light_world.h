@@ -11,10 +11,12 @@
 // run on them.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <numbers>
 #include <optional>
 #include <span>
 #include <string>
@@ -37,6 +39,16 @@ struct StructuredLightOptics {
   double projector_blur_px = 0.4;  // projector defocus, Gaussian σ in projector pixels
   double camera_blur_px = 0.4;     // camera blur (optics, pixel area), Gaussian σ in camera pixels
   std::uint64_t seed = 1;          // sensor noise stream
+
+  // The decoder's shadow threshold (DecodeThresholds::black) for this sensor. A pixel the
+  // projector does not reach reads the same ambient light in the white and the black frame, so
+  // its white − black is noise alone, σ = √2 · noise_grey; above 5.5 of those σ no such pixel
+  // passes. A higher threshold drops lit surfaces at grazing incidence or of dark clay (white −
+  // black = gain · albedo · cos θ), which decode: every bit still has to clear the `white`
+  // threshold.
+  int shadow_threshold() const {
+    return static_cast<int>(std::ceil(5.5 * std::numbers::sqrt2 * noise_grey));
+  }
 };
 
 // A plane n·X = d (camera frame, mm) of uniform albedo: the table or backdrop behind the objects.

@@ -4,7 +4,9 @@
 
 #include <algorithm>
 #include <bit>
+#include <cmath>
 #include <cstdlib>
+#include <limits>
 #include <opencv2/imgcodecs.hpp>
 #include <thread>
 
@@ -147,6 +149,85 @@ DecodedMap decode(const GrayCodePatterns& patterns, std::span<const GreyImage> f
   decode_rows(0, height / threads);
   workers.clear();  // joins
   return map;
+}
+
+void refine_columns_at_edges(const GrayCodePatterns& patterns, std::span<const GreyImage> frames,
+                             DecodedMap& map, double max_gap_px) {
+  if (static_cast<int>(frames.size()) != patterns.frame_count())
+    throw InputError(fmt::format(
+        "structured light: {} frames given to locate stripe edges, the Gray-code set has {}; "
+        "pass the sequence that was decoded",
+        frames.size(), patterns.frame_count()));
+  for (const GreyImage& f : frames)
+    if (f.width != map.width || f.height != map.height)
+      throw InputError(fmt::format(
+          "structured light: a {}x{} frame for a {}x{} decoded map; pass the sequence that was "
+          "decoded",
+          f.width, f.height, map.width, map.height));
+  const int bits = patterns.column_bits();
+  const auto& white = frames[patterns.white_frame()].pixels;
+  const auto& black = frames[patterns.black_frame()].pixels;
+  // The bit's (pattern − inverse) as a share of the pixel's full modulation (albedo cancels).
+  auto contrast = [&](int bit, std::size_t i) {
+    const int pair = bits - 1 - bit;  // frames run most significant bit first
+    const double difference = static_cast<double>(frames[2 * pair].pixels[i]) -
+                              static_cast<double>(frames[2 * pair + 1].pixels[i]);
+    return difference / (static_cast<double>(white[i]) - static_cast<double>(black[i]));
+  };
+  struct Boundary {
+    double x;       // camera column where the boundary lies
+    double column;  // projector column there (c + 0.5)
+  };
+  // Neighbouring pixels further apart in columns lie across a depth edge or a misdecoded bit.
+  constexpr int kMaxColumnsBetweenPixels = 3;
+  map.column_fine.assign(map.state.size(), std::numeric_limits<float>::quiet_NaN());
+  std::vector<Boundary> boundaries;
+  for (int y = 0; y < map.height; ++y) {
+    const std::size_t row = static_cast<std::size_t>(y) * map.width;
+    boundaries.clear();
+    for (int x = 0; x + 1 < map.width; ++x) {
+      const std::size_t i = row + x, j = i + 1;
+      if (map.state[i] != PixelState::kDecoded || map.state[j] != PixelState::kDecoded) continue;
+      const std::int32_t low = std::min(map.column[i], map.column[j]);
+      const int steps = std::abs(map.column[i] - map.column[j]);
+      if (steps == 0 || steps > kMaxColumnsBetweenPixels) continue;
+      // Each boundary between the two pixels' columns has its own bit (consecutive Gray
+      // boundaries never flip the same one), read at both pixels. They are taken in the order
+      // the row meets them and kept in that order (noise may swap two crossings in one pixel).
+      const bool ascending = map.column[j] > map.column[i];
+      double after = 0;  // the previous boundary's place between the two pixels
+      for (int k = 0; k < steps; ++k) {
+        const std::int32_t c = ascending ? low + k : low + steps - 1 - k;  // boundary c | c+1
+        const auto flipped =
+            static_cast<std::uint32_t>((c ^ (c >> 1)) ^ ((c + 1) ^ ((c + 1) >> 1)));
+        const int bit = std::countr_zero(flipped);
+        const double ci = contrast(bit, i), cj = contrast(bit, j);
+        if (!(ci != cj)) continue;  // no crossing between them (both read 0)
+        after = std::max(after, std::clamp(ci / (ci - cj), 0.0, 1.0));
+        boundaries.push_back({x + after, c + 0.5});
+      }
+    }
+    std::size_t next = 0;  // first boundary right of x
+    for (int x = 0; x < map.width; ++x) {
+      const std::size_t i = row + x;
+      if (map.state[i] != PixelState::kDecoded) continue;
+      map.column_fine[i] = static_cast<float>(map.column[i]);
+      while (next < boundaries.size() && boundaries[next].x <= x) ++next;
+      if (next == 0 || next == boundaries.size()) continue;
+      const Boundary& left = boundaries[next - 1];
+      const Boundary& right = boundaries[next];
+      if (right.x - left.x > max_gap_px || right.column == left.column ||
+          std::abs(right.column - left.column) > kMaxColumnsBetweenPixels)
+        continue;
+      bool holes = false;
+      for (int k = static_cast<int>(std::ceil(left.x)); k <= static_cast<int>(right.x); ++k)
+        holes |= map.state[row + k] != PixelState::kDecoded;
+      if (holes) continue;
+      const double fine =
+          left.column + (x - left.x) / (right.x - left.x) * (right.column - left.column);
+      if (std::abs(fine - map.column[i]) <= 1) map.column_fine[i] = static_cast<float>(fine);
+    }
+  }
 }
 
 }  // namespace sherd::structured_light

@@ -78,4 +78,17 @@ struct DecodedMap {
 DecodedMap decode(const GrayCodePatterns& patterns, std::span<const GreyImage> frames,
                   const DecodeThresholds& thresholds, int threads = 2);
 
+// Sub-pixel projector columns from Gray code alone (sets map.column_fine). Every boundary between
+// neighbouring projector columns c | c+1 flips exactly one Gray bit; where two neighbouring camera
+// pixels of a row decode to c and c+1, the boundary (projector column c + 0.5) lies where that
+// bit's (pattern − inverse)/(white − black) crosses zero, linearly interpolated between the two
+// pixels. Each decoded pixel's column then follows linearly between the boundaries on either side
+// of it (at most `max_gap_px` camera pixels apart, the pixels between them all decoded, the result
+// within one column of the decoded one: windows across a depth edge are rejected); a pixel without
+// such boundaries keeps its whole column. Assumes camera rows run across the projector columns
+// (a baseline along them), as the column-plane triangulation does. `frames` is the decoded
+// sequence; throws InputError when its frame count or sizes do not match.
+void refine_columns_at_edges(const GrayCodePatterns& patterns, std::span<const GreyImage> frames,
+                             DecodedMap& map, double max_gap_px = 6);
+
 }  // namespace sherd::structured_light

@@ -44,7 +44,12 @@ void refine_columns(const PhaseShiftPatterns& patterns, std::span<const GreyImag
     sines[k] = std::sin(two_pi * k / patterns.steps);
   }
   const double period = patterns.period_px;
-  map.column_fine.assign(map.state.size(), std::numeric_limits<float>::quiet_NaN());
+  if (map.column_fine.empty())
+    map.column_fine.assign(map.state.size(), std::numeric_limits<float>::quiet_NaN());
+  // A pixel whose fringes cannot be read keeps the stripe edges' column where it has one.
+  auto unreadable = [&](std::size_t i, PixelState state) {
+    if (std::isnan(map.column_fine[i])) map.state[i] = state;
+  };
   for (std::size_t i = 0; i < map.state.size(); ++i) {
     if (map.state[i] != PixelState::kDecoded) continue;
     // I_k = A + B·cos(θ + δ_k)  ⇒  Σ I_k cos δ_k = (N/2)·B·cos θ, Σ I_k sin δ_k = −(N/2)·B·sin θ.
@@ -56,11 +61,11 @@ void refine_columns(const PhaseShiftPatterns& patterns, std::span<const GreyImag
       clipped |= frames[k].pixels[i] >= saturation;
     }
     if (clipped) {
-      map.state[i] = PixelState::kSaturated;
+      unreadable(i, PixelState::kSaturated);
       continue;
     }
     if (2.0 / patterns.steps * std::hypot(c, s) < min_modulation) {
-      map.state[i] = PixelState::kLowContrast;
+      unreadable(i, PixelState::kLowContrast);
       continue;
     }
     double theta = std::atan2(-s, c);

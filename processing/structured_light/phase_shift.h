@@ -23,7 +23,10 @@ struct PhaseShiftPatterns {
 // Refines `map` in place: sets map.column_fine for decoded pixels whose fringe modulation (the
 // sinusoid's amplitude, grey levels) reaches `min_modulation`; other decoded pixels become
 // kLowContrast, and those with a fringe frame at or above `saturation` kSaturated (a clipped
-// sinusoid shifts the phase). Throws InputError when the frame count or sizes do not match.
+// sinusoid shifts the phase) — unless map.column_fine already holds their column from the stripe
+// edges (refine_columns_at_edges run first), which they then keep: dim surfaces at grazing
+// incidence decode in the Gray code but have too little fringe amplitude for a phase. Throws
+// InputError when the frame count or sizes do not match.
 void refine_columns(const PhaseShiftPatterns& patterns, std::span<const GreyImage> frames,
                     double min_modulation, DecodedMap& map, int saturation = 255);
 

@@ -69,6 +69,8 @@ OrganisedView StructuredLightScanner::capture() {
   const std::span<const GreyImage> all(frames);
   DecodedMap map =
       decode(gray_, all.first(gray_.frame_count()), options_.thresholds, options_.threads);
+  // Stripe edges first: with phase shifting they stand where the fringes are too faint.
+  refine_columns_at_edges(gray_, all.first(gray_.frame_count()), map);
   if (options_.patterns == PatternSet::kPhase)
     refine_columns(phase_, all.subspan(gray_.frame_count()), options_.min_modulation, map);
   TriangulatedView view =

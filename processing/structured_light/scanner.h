@@ -17,7 +17,7 @@
 namespace sherd::structured_light {
 
 enum class PatternSet {
-  kGray,   // Gray code alone: projector columns to the pixel
+  kGray,   // Gray code alone: sub-pixel columns from the stripe edges (refine_columns_at_edges)
   kPhase,  // Gray code, then phase-shifted fringes refining the column to a fraction of a pixel
 };
 
@@ -26,7 +26,7 @@ struct ScannerOptions {
   DecodeThresholds thresholds{.edge_bits = 1};
   int phase_period_px = 16;   // fringe period (kPhase)
   int phase_steps = 4;        // fringe frames (kPhase)
-  double min_modulation = 8;  // grey levels of fringe amplitude below which a pixel is dropped
+  double min_modulation = 8;  // fringe amplitude (grey levels) below which the edge column stands
   // Points whose camera and projector rays pass further apart than this are dropped: the decoded
   // column and row disagree (a pixel straddling a depth edge, a misdecoded bit). 0 = keep all.
   double max_ray_gap_mm = 0;

@@ -2,10 +2,13 @@
 // pixel must decode to its own column/row) and the real captures of a chessboard.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
+#include <limits>
 
 #include "core/errors.h"
 #include "processing/structured_light/gray_code.h"
+#include "processing/structured_light/phase_shift.h"
 
 namespace sl = sherd::structured_light;
 
@@ -91,4 +94,77 @@ TEST(GrayCode, AShortSequenceIsRefusedWithAClearMessage) {
   } catch (const sherd::InputError& e) {
     EXPECT_NE(std::string(e.what()).find("3 frames given"), std::string::npos) << e.what();
   }
+}
+
+namespace {
+
+// A camera of 400 × 4 pixels whose rows see the projector along the line p(x) = 100.3 + 0.55·x
+// (about 1.8 camera pixels per projector column), each pixel's grey linear between the projector
+// pixels on either side of p (a blur-free projector), dark 20 and lit 200 grey levels: the frames
+// it films of `patterns`.
+constexpr int kLineWidth = 400, kLineHeight = 4;
+double line_seen(int x) { return 100.3 + 0.55 * x; }
+std::vector<sl::GreyImage> film_line(const std::vector<sl::GreyImage>& patterns) {
+  std::vector<sl::GreyImage> frames;
+  for (const sl::GreyImage& shown : patterns) {
+    sl::GreyImage image{kLineWidth, kLineHeight,
+                        std::vector<std::uint8_t>(kLineWidth * kLineHeight)};
+    for (int y = 0; y < kLineHeight; ++y)
+      for (int x = 0; x < kLineWidth; ++x) {
+        const double p = line_seen(x), w = p - std::floor(p);
+        const int left = static_cast<int>(p), projector_row = 300 + y;
+        const double lit = (1 - w) * shown.at(left, projector_row) / 255.0 +
+                           w * shown.at(left + 1, projector_row) / 255.0;
+        image.pixels[y * kLineWidth + x] = static_cast<std::uint8_t>(std::lround(20 + 180 * lit));
+      }
+    frames.push_back(std::move(image));
+  }
+  return frames;
+}
+
+// The Gray-code frames filmed, decoded and refined at the stripe edges.
+sl::DecodedMap decode_line(const sl::GrayCodePatterns& patterns) {
+  std::vector<sl::GreyImage> shown;
+  for (int f = 0; f < patterns.frame_count(); ++f) shown.push_back(patterns.frame(f));
+  const auto frames = film_line(shown);
+  sl::DecodedMap map = sl::decode(patterns, frames, {.edge_bits = 1});
+  EXPECT_EQ(map.decoded_count(), static_cast<std::size_t>(kLineWidth * kLineHeight));
+  sl::refine_columns_at_edges(patterns, frames, map);
+  return map;
+}
+
+// The largest |column − p(x)| over the pixels with a boundary on both sides.
+template <typename Column>
+double worst_column_error(const sl::DecodedMap& map, Column column) {
+  double worst = 0;
+  for (int y = 0; y < kLineHeight; ++y)
+    for (int x = 2; x < kLineWidth - 2; ++x) {
+      const std::size_t i = static_cast<std::size_t>(y) * kLineWidth + x;
+      if (map.state[i] != sl::PixelState::kDecoded) return std::numeric_limits<double>::infinity();
+      worst = std::max(worst, std::abs(column(i) - line_seen(x)));
+    }
+  return worst;
+}
+
+}  // namespace
+
+// Truth: p(x). The decoded whole column is up to half a column off; the stripe edges place every
+// pixel between two boundaries to a small fraction of a column.
+TEST(GrayCode, StripeEdgesPlaceColumnsBetweenProjectorPixels) {
+  const sl::DecodedMap map = decode_line({1024, 768});
+  EXPECT_GT(worst_column_error(map, [&](std::size_t i) { return double(map.column[i]); }), 0.4);
+  EXPECT_LT(worst_column_error(map, [&](std::size_t i) { return double(map.column_fine[i]); }),
+            0.05);
+}
+
+// Fringes too faint to read (a projector showing flat grey): the pixels keep the stripe edges'
+// columns instead of being dropped.
+TEST(GrayCode, StripeEdgesStandWhereFringesAreTooFaint) {
+  sl::DecodedMap map = decode_line({1024, 768});
+  const sl::PhaseShiftPatterns phase{1024, 768};
+  const sl::GreyImage grey{1024, 768, std::vector<std::uint8_t>(1024 * 768, 128)};
+  const auto frames = film_line(std::vector<sl::GreyImage>(phase.steps, grey));
+  sl::refine_columns(phase, frames, 8, map);
+  EXPECT_LT(worst_column_error(map, [&](std::size_t i) { return double(map.column_fine[i]); }),
+            0.05);
 }
