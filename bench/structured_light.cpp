@@ -13,7 +13,8 @@
 //        simulated GigE camera, the Aravis driver, the decoder and the triangulation: share of the
 //        camera pixels seeing a lit surface that are decoded, distance of the points to the true
 //        surface; Gray code alone and Gray code + phase shift
-// Usage: bench_structured_light [SHARED_DATA_DIR] (default ../shared/data beside the repository).
+// Usage: bench_structured_light [SHARED_DATA_DIR] (default ../shared/data beside the repository;
+// --help lists it).
 #include <nlohmann/json.hpp>
 
 #include <Eigen/Eigenvalues>
@@ -24,6 +25,8 @@
 #include <iostream>
 
 #include <arv.h>
+
+#include <CLI/CLI.hpp>
 
 #include "bench/bench_stats.h"
 #include "drivers/aravis_camera.h"
@@ -204,9 +207,14 @@ json simulated_scene(int width, int height, std::uint64_t seed, sl::PatternSet p
 }  // namespace
 
 int main(int argc, char** argv) {
-  const std::filesystem::path shared =
-      argc > 1 ? std::filesystem::path(argv[1])
-               : std::filesystem::path(SHERD_SOURCE_DIR) / "../shared/data";
+  CLI::App app{
+      "bench_structured_light: simulated scenes through Aravis's fake GigE camera (Gray code and "
+      "Gray + phase, seeds 1-3), then calibration, decoding, board geometry and speed on the real "
+      "procam-graycode-calib captures, and Aravis acquisition throughput"};
+  std::filesystem::path shared = std::filesystem::path(SHERD_SOURCE_DIR) / "../shared/data";
+  app.add_option("shared_data_dir", shared, "the shared data directory (holds procam-graycode-calib)")
+      ->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
   const auto sample = shared / "procam-graycode-calib/sample_data";
   for (std::uint64_t seed : {1, 2, 3})
     for (sl::PatternSet set : {sl::PatternSet::kGray, sl::PatternSet::kPhase})
