@@ -1,5 +1,6 @@
 // Benchmark: view registration against ground truth, our method side by side with PCL's
-// IterativeClosestPoint and GeneralizedIterativeClosestPoint (default settings) from the same seeds.
+// IterativeClosestPoint and GeneralizedIterativeClosestPoint (default settings) from the same
+// seeds.
 //  1. A directory in the Stanford `.conf` layout (default: the Stanford bunny), the turntable views
 //     bunNNN only, each seeded by the nominal angle NNN in its name about the turntable axis.
 //  2. The simulated station (scenes "frame" and "vessel") for --seeds seeds, 8 views each, the
@@ -8,17 +9,16 @@
 // Prints one JSON object per view and method, then a summary per data set and method (and for the
 // reference poses themselves, "reference": how well the views agree under them).
 //   bench_registration [--conf DIR/bun.conf] [--config config/station.toml] [--seeds 3]
-//                      [--scenes frame vessel] [--methods icp gicp | none] [--colour]
+//                      [--scenes frame vessel] [--methods icp gicp | none] [--geometry-only]
+#include "processing/registration/registration.h"
 #include "bench/bench_stats.h"
 #include "config/station_config.h"
 #include "core/errors.h"
+#include "daemon/pipeline.h"
 #include "daemon/station.h"
-#include "processing/registration/registration.h"
 #include "simulators/sim_turntable.h"
 
-#include <CLI/CLI.hpp>
 #include <fmt/format.h>
-#include <nlohmann/json.hpp>
 #include <pcl/common/transforms.h>
 #include <pcl/filters/voxel_grid.h>
 #include <pcl/kdtree/kdtree_flann.h>
@@ -26,6 +26,8 @@
 #include <pcl/registration/gicp.h>
 #include <pcl/registration/icp.h>
 #include <spdlog/spdlog.h>
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <chrono>
@@ -79,8 +81,8 @@ Eigen::Vector3d centroid(const OrganisedView& view) {
 }
 
 // Error of view i's final pose, relative to view 0, against the truth relative to view 0.
-ViewError relative_error(const Pose& est0, const Pose& est_i, const Pose& truth0, const Pose& truth_i,
-                         const Eigen::Vector3d& view_centroid) {
+ViewError relative_error(const Pose& est0, const Pose& est_i, const Pose& truth0,
+                         const Pose& truth_i, const Eigen::Vector3d& view_centroid) {
   const Pose est_rel = est0.inverse() * est_i;
   const Pose truth_rel = truth0.inverse() * truth_i;
   const Eigen::AngleAxisd delta((truth_rel.inverse() * est_rel).rotation());
@@ -111,8 +113,8 @@ Pose conf_pose(double tx, double ty, double tz, double qx, double qy, double qz,
 OrganisedView read_range_scan(const std::filesystem::path& file) {
   std::ifstream in(file);
   const auto fail = [&](const std::string& what) {
-    return sherd::InputError(fmt::format("{}: {}; the .conf benchmark needs Cyberware ASCII range scans",
-                                         file.string(), what));
+    return sherd::InputError(fmt::format(
+        "{}: {}; the .conf benchmark needs Cyberware ASCII range scans", file.string(), what));
   };
   if (!in) throw fail("cannot open");
   std::string line;
@@ -150,7 +152,8 @@ OrganisedView read_range_scan(const std::filesystem::path& file) {
     throw fail("not an ASCII PLY with x y z vertices");
   }
   if (cols <= 0 || rows <= 0 || cells != static_cast<std::size_t>(cols) * rows) {
-    throw fail(fmt::format("no range_grid of num_cols × num_rows cells ({} × {}, {} cells)", cols, rows, cells));
+    throw fail(fmt::format("no range_grid of num_cols × num_rows cells ({} × {}, {} cells)", cols,
+                           rows, cells));
   }
   std::vector<sherd::Vec3f> points(vertices);
   std::vector<double> values(vertex_properties);
@@ -168,7 +171,8 @@ OrganisedView read_range_scan(const std::filesystem::path& file) {
   for (std::size_t cell = 0; cell < cells; ++cell) {
     int count = 0;
     std::size_t index = 0;
-    if (!(in >> count) || count < 0 || count > 1 || (count == 1 && !(in >> index)) || index >= vertices) {
+    if (!(in >> count) || count < 0 || count > 1 || (count == 1 && !(in >> index)) ||
+        index >= vertices) {
       throw fail(fmt::format("range_grid cell {} is corrupt (expected `0` or `1 INDEX`)", cell));
     }
     if (count == 1 && points[index].allFinite()) {
@@ -188,7 +192,9 @@ OrganisedView read_range_scan(const std::filesystem::path& file) {
 // bun180 and bun270 sit within 0.4 mm of a pure rotation about it.
 DataSet read_conf(const std::filesystem::path& conf) {
   std::ifstream in(conf);
-  if (!in) throw sherd::InputError(fmt::format("{}: cannot open; pass --conf DIR/NAME.conf", conf.string()));
+  if (!in)
+    throw sherd::InputError(
+        fmt::format("{}: cannot open; pass --conf DIR/NAME.conf", conf.string()));
   const std::regex turntable_name(R"(^(bun)(\d{3})(\.ply)?$)");
   const Pose to_z_up(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitX()));
   DataSet set{conf.stem().string(), {}, {}, {}};
@@ -210,7 +216,8 @@ DataSet read_conf(const std::filesystem::path& conf) {
     if (keyword != "bmesh") continue;  // the "camera" line and blank lines
     double tx, ty, tz, qx, qy, qz, qw;
     if (!(fields >> file >> tx >> ty >> tz >> qx >> qy >> qz >> qw)) {
-      throw sherd::InputError(fmt::format("{}:{}: expected `bmesh FILE tx ty tz qx qy qz qw`", conf.string(), line_no));
+      throw sherd::InputError(
+          fmt::format("{}:{}: expected `bmesh FILE tx ty tz qx qy qz qw`", conf.string(), line_no));
     }
     std::smatch m;
     if (!std::regex_match(file, m, turntable_name)) continue;  // off-turntable views (chin, top2…)
@@ -221,9 +228,11 @@ DataSet read_conf(const std::filesystem::path& conf) {
                          sherd::registration::turntable_prior(to_z_up, -nominal_deg * kDeg),
                          to_z_up * conf_pose(tx, ty, tz, qx, qy, qz, qw)});
   }
-  std::sort(set.views.begin(), set.views.end(), [](const auto& a, const auto& b) { return a.name < b.name; });
+  std::sort(set.views.begin(), set.views.end(),
+            [](const auto& a, const auto& b) { return a.name < b.name; });
   if (set.views.size() < 2) {
-    throw sherd::InputError(fmt::format("{}: fewer than two turntable views (bunNNN); nothing to register", conf.string()));
+    throw sherd::InputError(fmt::format(
+        "{}: fewer than two turntable views (bunNNN); nothing to register", conf.string()));
   }
   return set;
 }
@@ -232,20 +241,23 @@ DataSet read_conf(const std::filesystem::path& conf) {
 // Simulated station
 
 DataSet simulate(sherd::config::StationConfig config, std::uint64_t seed, const std::string& scene,
-               bool use_colour) {
+                 bool geometry_only) {
   config.simulation.seed = seed;
   config.simulation.scene = scene;
   config.turntable.time_scale = 0.0;
   auto station = sherd::station::make_station(config);
   // The simulated turntable knows where the plate physically stands: that is the ground truth.
   const auto* plate = dynamic_cast<const sherd::sim::SimulatedTurntable*>(station.turntable.get());
-  if (plate == nullptr) throw sherd::InputError("the simulated benchmark needs turntable.driver = \"simulated\"");
+  if (plate == nullptr)
+    throw sherd::InputError("the simulated benchmark needs turntable.driver = \"simulated\"");
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> angle_noise(-0.5, 0.5), unit(-1.0, 1.0), shift(0.0, 0.2);
   DataSet set{"simulated-" + scene, {}, {}, {}};
   // The seeds below: ±0.5° uniform about the axis (σ 0.29°), up to 0.2 mm in any direction.
   set.prior = {.angle_sd_deg = 0.29, .tilt_sd_deg = 0.05, .translation_sd_mm = 0.15};
-  set.params.use_colour = use_colour;
+  // Registered as the station registers them ([registration] in the configuration).
+  set.params = sherd::station::registration_params(config.registration);
+  if (geometry_only) set.params.use_colour = false;
   station.turntable->home();
   const int views = 8;
   for (int i = 0; i < views; ++i) {
@@ -253,7 +265,8 @@ DataSet simulate(sherd::config::StationConfig config, std::uint64_t seed, const 
     BenchView v;
     v.name = fmt::format("seed{}-view{}", seed, i);
     v.view = station.scanner->capture();
-    v.truth = sherd::registration::turntable_prior(station.scanner_to_world, plate->physical_angle());
+    v.truth =
+        sherd::registration::turntable_prior(station.scanner_to_world, plate->physical_angle());
     Eigen::Vector3d direction;
     do direction = {unit(rng), unit(rng), unit(rng)};
     while (direction.norm() < 1e-3 || direction.norm() > 1.0);
@@ -281,12 +294,18 @@ MethodResult run_ours(const DataSet& set) {
   const auto result = sherd::registration::register_views(inputs, set.prior, set.params);
   const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
   for (const auto& e : result.edges) {
-    std::cout << nlohmann::json{{"bench", "registration"}, {"set", set.name}, {"method", "ours"},
+    std::cout << nlohmann::json{{"bench", "registration"},
+                                {"set", set.name},
+                                {"method", "ours"},
                                 {"edge", {set.views[e.target].name, set.views[e.source].name}},
-                                {"status", e.status}, {"neighbours", e.neighbours},
-                                {"overlap_at_prior", e.overlap_at_prior}, {"overlap", e.overlap},
-                                {"rms_mm", e.rms_mm}, {"iterations", e.iterations},
-                                {"colour", e.used_colour}, {"correction_deg", e.correction_deg},
+                                {"status", e.status},
+                                {"neighbours", e.neighbours},
+                                {"overlap_at_prior", e.overlap_at_prior},
+                                {"overlap", e.overlap},
+                                {"rms_mm", e.rms_mm},
+                                {"iterations", e.iterations},
+                                {"colour", e.used_colour},
+                                {"correction_deg", e.correction_deg},
                                 {"correction_mm", e.correction_mm}}
                      .dump()
               << std::endl;
@@ -301,8 +320,8 @@ MethodResult run_ours(const DataSet& set) {
   return out;
 }
 
-// Both PCL methods get the same 1 mm voxel grid that ours downsamples to (full-resolution GICP
-// needs covariances of every point and would take minutes per view).
+// Both PCL methods get the voxel grid that ours downsamples to, registration voxel_mm
+// (full-resolution GICP needs covariances of every point and would take minutes per view).
 CloudT::Ptr downsampled(const OrganisedView& view, double voxel_mm) {
   auto raw = std::make_shared<CloudT>();
   for (std::size_t i = 0; i < view.cells(); ++i) {
@@ -396,13 +415,18 @@ void evaluate(const DataSet& set, const std::string& method, const MethodResult&
     s.translation_mm.push_back(e.translation_mm);
     s.centroid_mm.push_back(e.centroid_mm);
     s.seconds.push_back(r.seconds[i]);
-    std::cout << nlohmann::json{{"bench", "registration"}, {"set", set.name}, {"method", method},
-                                {"view", set.views[i].name}, {"rotation_error_deg", e.rotation_deg},
-                                {"translation_error_mm", e.translation_mm}, {"centroid_error_mm", e.centroid_mm},
+    std::cout << nlohmann::json{{"bench", "registration"},
+                                {"set", set.name},
+                                {"method", method},
+                                {"view", set.views[i].name},
+                                {"rotation_error_deg", e.rotation_deg},
+                                {"translation_error_mm", e.translation_mm},
+                                {"centroid_error_mm", e.centroid_mm},
                                 {"seed_rotation_error_deg", seed.rotation_deg},
                                 {"seed_translation_error_mm", seed.translation_mm},
                                 {"seed_centroid_error_mm", seed.centroid_mm},
-                                {"seconds", r.seconds[i]}, {"flags", r.flags[i]}}
+                                {"seconds", r.seconds[i]},
+                                {"flags", r.flags[i]}}
                      .dump()
               << std::endl;
   }
@@ -412,7 +436,7 @@ void evaluate(const DataSet& set, const std::string& method, const MethodResult&
 std::set<std::string> pcl_methods;
 
 void run_all(const DataSet& set, std::map<std::string, std::map<std::string, Samples>>& all) {
-  const double voxel_mm = sherd::registration::Params{}.voxel_mm;
+  const double voxel_mm = set.params.voxel_mm;
   std::vector<Pose> truth;
   for (const auto& v : set.views) truth.push_back(v.truth);
   all[set.name]["reference"].overlap_distance_mm.push_back(median_overlap_distance_mm(set, truth));
@@ -422,9 +446,10 @@ void run_all(const DataSet& set, std::map<std::string, std::map<std::string, Sam
              run_pcl<pcl::IterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ>>(set, voxel_mm), all);
   }
   if (pcl_methods.contains("gicp")) {
-    evaluate(set, "gicp",
-             run_pcl<pcl::GeneralizedIterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ>>(set, voxel_mm),
-             all);
+    evaluate(
+        set, "gicp",
+        run_pcl<pcl::GeneralizedIterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ>>(set, voxel_mm),
+        all);
   }
 }
 
@@ -432,14 +457,17 @@ void print_summaries(const std::map<std::string, std::map<std::string, Samples>>
   for (const auto& [set, methods] : all) {
     const auto& ours = methods.at("ours");
     for (const auto& [method, s] : methods) {
-      nlohmann::json line{{"bench", "registration"}, {"summary", set}, {"method", method},
-                          {"views", s.rotation_deg.size()},
-                          {"median_rotation_error_deg", number_or_null(quantile(s.rotation_deg, 0.5))},
-                          {"p95_rotation_error_deg", number_or_null(quantile(s.rotation_deg, 0.95))},
-                          {"median_translation_error_mm", number_or_null(quantile(s.translation_mm, 0.5))},
-                          {"median_centroid_error_mm", number_or_null(quantile(s.centroid_mm, 0.5))},
-                          {"median_seconds_per_view", number_or_null(quantile(s.seconds, 0.5))},
-                          {"median_overlap_distance_mm", number_or_null(quantile(s.overlap_distance_mm, 0.5))}};
+      nlohmann::json line{
+          {"bench", "registration"},
+          {"summary", set},
+          {"method", method},
+          {"views", s.rotation_deg.size()},
+          {"median_rotation_error_deg", number_or_null(quantile(s.rotation_deg, 0.5))},
+          {"p95_rotation_error_deg", number_or_null(quantile(s.rotation_deg, 0.95))},
+          {"median_translation_error_mm", number_or_null(quantile(s.translation_mm, 0.5))},
+          {"median_centroid_error_mm", number_or_null(quantile(s.centroid_mm, 0.5))},
+          {"median_seconds_per_view", number_or_null(quantile(s.seconds, 0.5))},
+          {"median_overlap_distance_mm", number_or_null(quantile(s.overlap_distance_mm, 0.5))}};
       if (method == "ours") {
         for (const char* other : {"icp", "gicp"}) {
           if (!methods.contains(other)) continue;
@@ -462,12 +490,16 @@ void print_summaries(const std::map<std::string, std::map<std::string, Samples>>
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"bench_registration: view registration errors against ground truth, ours vs PCL ICP and GICP"};
+  CLI::App app{
+      "bench_registration: view registration errors against ground truth, ours vs PCL ICP and "
+      "GICP"};
   std::string conf = "../shared/data/stanford-bunny/data/bun.conf";
   std::string config_file = "config/station.toml";
   int seeds = 3;
-  app.add_option("--conf", conf, "a .conf file (Stanford layout); empty: skip")->capture_default_str();
-  app.add_option("--config", config_file, "station configuration of the simulated scans")->capture_default_str();
+  app.add_option("--conf", conf, "a .conf file (Stanford layout); empty: skip")
+      ->capture_default_str();
+  app.add_option("--config", config_file, "station configuration of the simulated scans")
+      ->capture_default_str();
   app.add_option("--seeds", seeds, "simulated seeds (each: a frame and a vessel scan); 0: skip")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
@@ -479,9 +511,10 @@ int main(int argc, char** argv) {
   app.add_option("--methods", methods, "PCL's methods to run beside ours (none: only ours)")
       ->capture_default_str()
       ->check(CLI::IsMember({"icp", "gicp", "none"}));
-  bool use_colour = false;
-  app.add_flag("--colour", use_colour,
-               "our method with its photometric term (registration use_colour) on simulated scans");
+  bool geometry_only = false;
+  app.add_flag("--geometry-only", geometry_only,
+               "our method without its photometric term on simulated scans (as [registration] "
+               "use_colour = false)");
   CLI11_PARSE(app, argc, argv);
   pcl_methods.insert(methods.begin(), methods.end());
   spdlog::set_level(spdlog::level::warn);
@@ -493,7 +526,7 @@ int main(int argc, char** argv) {
       const auto config = sherd::config::load_station_config(config_file);
       for (int seed = 1; seed <= seeds; ++seed) {
         for (const auto& scene : scenes) {
-          run_all(simulate(config, static_cast<std::uint64_t>(seed), scene, use_colour), all);
+          run_all(simulate(config, static_cast<std::uint64_t>(seed), scene, geometry_only), all);
         }
       }
     }

@@ -112,12 +112,12 @@ struct CalibrationSettings {
 
 struct RegistrationSettings {
   bool refine_with_icp = true;
-  double voxel_mm = 1.0;                  // downsampling before ICP
+  double voxel_mm = 0.5;                  // downsampling before ICP
   double max_correspondence_mm = 3.0;
   int max_iterations = 40;
   double max_correction_deg = 3.0;        // a larger correction from the turntable prior is flagged
   double max_correction_mm = 5.0;
-  bool use_colour = false;                // photometric term where views have colour
+  bool use_colour = true;                 // photometric term where views have colour
 };
 
 struct SegmentationSettings {

@@ -30,6 +30,8 @@ void write_json_file(const std::filesystem::path& file, const nlohmann::json& do
   write_file_atomically(file, doc.dump(2) + '\n');
 }
 
+}  // namespace
+
 registration::Params registration_params(const config::RegistrationSettings& s) {
   registration::Params p;
   p.refine_with_icp = s.refine_with_icp;
@@ -41,6 +43,8 @@ registration::Params registration_params(const config::RegistrationSettings& s) 
   p.use_colour = s.use_colour;
   return p;
 }
+
+namespace {
 
 render::PlateSettings plate_settings(const config::RenderSettings& s) {
   return render::PlateSettings{s.dpi, s.material, s.materials_file, s.section_side != "left",

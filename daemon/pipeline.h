@@ -62,6 +62,7 @@ struct MaterialChoice {
 void check_materials(const MaterialChoice& choice, const config::RenderSettings& station);
 
 segmentation::Params segmentation_params(const config::SegmentationSettings& settings);
+registration::Params registration_params(const config::RegistrationSettings& settings);
 
 class Pipeline {
  public:

@@ -17,6 +17,7 @@
 #include <numbers>
 #include <numeric>
 #include <random>
+#include <set>
 
 #include "core/errors.h"
 
@@ -185,6 +186,18 @@ std::vector<Pair> nearest_pairs(const CloudT& source,
     pairs.push_back({static_cast<int>(i), index[0], distance_sq[0]});
   }
   return pairs;
+}
+
+// A fingerprint of which source point pairs with which target point (FNV-1a over the indices).
+std::uint64_t pairing_hash(const std::vector<Pair>& pairs) {
+  std::uint64_t hash = 1469598103934665603ull;
+  for (const Pair& pair : pairs) {
+    for (const int index : {pair.source, pair.target}) {
+      hash ^= static_cast<std::uint32_t>(index);
+      hash *= 1099511628211ull;
+    }
+  }
+  return hash;
 }
 
 // Distance of a source point from the plane of its target point.
@@ -531,7 +544,7 @@ struct PairRefinement {
 // term is weighted by the inverse of its own robust residual variance (millimetres and contrast
 // are different units; the data say how reliable each is).
 PairRefinement refine_pair(const ViewData& target, const ViewData& source,
-                           const Eigen::Isometry3d& initial, double coarse_mm,
+                           const Eigen::Isometry3d& initial, double coarse_mm, bool use_colour,
                            double max_colour_slide_rad, const Params& params) {
   std::vector<double> distances{coarse_mm};
   while (distances.back() > params.max_correspondence_mm * 1.5)
@@ -554,17 +567,24 @@ PairRefinement refine_pair(const ViewData& target, const ViewData& source,
   result.correction = initial;
   Matrix6d last_jtj = Matrix6d::Zero();
   Matrix6d last_held = Matrix6d::Zero();  // projector onto the held directions
-  bool colour_allowed = params.use_colour && target.coloured() && source.coloured();
+  bool colour_allowed = use_colour && target.coloured() && source.coloured();
   const auto run_stages = [&](std::size_t first_stage) {
     for (std::size_t stage = first_stage; stage < distances.size(); ++stage) {
       const bool last_stage = stage + 1 == distances.size();
       const bool colour = last_stage && colour_allowed;
       const CloudT& points = last_stage ? sample : coarse_sample;
       const double tolerance_mm = last_stage ? 1e-3 : 0.01 * distances[stage];
+      // ICP alternates pairing and solving; once a pairing comes back, the alternation has entered
+      // a cycle (a few pairs toggling in and out of the trimmed set, each toggle moving the view
+      // by ~0.01 mm) and further iterations only go round it. Measured on textured simulated
+      // vessels: without this, half the coloured pairs ran into the iteration limit for the same
+      // accuracy and twice the time.
+      std::set<std::uint64_t> pairings_seen;
       for (int iteration = 0; iteration < params.max_iterations; ++iteration) {
         const CloudT::Ptr moved = transformed(points, result.correction);
         std::vector<Pair> pairs = nearest_pairs(*moved, *target.tree, distances[stage]);
         if (pairs.size() < kMinCorrespondences) return false;  // lost its surface: not converged
+        if (!pairings_seen.insert(pairing_hash(pairs)).second) break;
         // Trimmed: only the closest share of the pairs pulls.
         const std::size_t kept = std::min(
             pairs.size(), std::max(kMinCorrespondences,
@@ -1033,8 +1053,12 @@ Result register_views(const std::vector<ViewInput>& views,
     edge.overlap_at_prior = c.overlap;
     const ViewData& target = data[c.target];
     const ViewData& source = data[c.source];
+    // The colour only between turntable neighbours: views further apart light and occlude the
+    // same surface differently, and their texture matches were measured to be false (frames lost
+    // accuracy, 0.0045° → 0.012° median, from colour on their opposite-view edges).
     const PairRefinement pair =
-        refine_pair(target, source, initial, coarse_mm, max_colour_slide_rad, params);
+        refine_pair(target, source, initial, coarse_mm, params.use_colour && c.neighbours,
+                    max_colour_slide_rad, params);
     edge.iterations = pair.iterations;
     edge.used_colour = pair.used_colour;
     edge.degenerate = pair.degenerate;

