@@ -48,6 +48,8 @@ void check_params(const Params& p) {
   }
   if (!(p.contact_erosion_mm >= 0.0))
     bad(fmt::format("contact_erosion_mm = {} must be >= 0", p.contact_erosion_mm));
+  if (!(p.contact_min_core_mm2 >= 0.0))
+    bad(fmt::format("contact_min_core_mm2 = {} must be >= 0", p.contact_min_core_mm2));
   if (!(p.plane_distance_mm > 0.0))
     bad(fmt::format("plane_distance_mm = {} must be > 0", p.plane_distance_mm));
 }
@@ -310,8 +312,9 @@ std::vector<std::vector<std::uint32_t>> clusters(const std::vector<Vec3f>& point
   const double leaf = tolerance / kVoxelsPerTolerance;
   // A core must be as large as the smallest sherd's eroded footprint could be.
   const double core_side = std::max(params.min_extent_mm - 2.0 * params.contact_erosion_mm, leaf);
+  const double min_core_mm2 = std::max(1.5 * core_side * core_side, params.contact_min_core_mm2);
   const auto min_core_voxels =
-      static_cast<std::size_t>(std::max(4.0, 1.5 * core_side * core_side / (leaf * leaf)));
+      static_cast<std::size_t>(std::max(4.0, min_core_mm2 / (leaf * leaf)));
   std::vector<float> distance(voxels.centres.size());
   std::vector<int> tag(voxels.centres.size());
 
