@@ -7,12 +7,14 @@
 #include <fmt/format.h>
 #include <pcl/ModelCoefficients.h>
 #include <pcl/PointIndices.h>
+#include <pcl/features/normal_3d.h>
 #include <pcl/point_types.h>
 #include <pcl/search/kdtree.h>
 #include <pcl/segmentation/sac_segmentation.h>
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <numeric>
 #include <queue>
 
@@ -50,6 +52,8 @@ void check_params(const Params& p) {
     bad(fmt::format("contact_erosion_mm = {} must be >= 0", p.contact_erosion_mm));
   if (!(p.contact_min_core_mm2 >= 0.0))
     bad(fmt::format("contact_min_core_mm2 = {} must be >= 0", p.contact_min_core_mm2));
+  if (!(p.frame_height_mm >= 0.0))
+    bad(fmt::format("frame_height_mm = {} must be >= 0", p.frame_height_mm));
   if (!(p.plane_distance_mm > 0.0))
     bad(fmt::format("plane_distance_mm = {} must be > 0", p.plane_distance_mm));
 }
@@ -96,6 +100,50 @@ void remove_support_plane(const std::vector<Vec3f>& points, const Params& params
   }
   if (largest_side(points, inliers) < params.plane_min_extent_mm) return;
   for (auto i : inliers) keep[i] = 0;
+}
+
+// The holding frame by its geometry (see Params::frame_height_mm): points below the plinths' top
+// go, and points on the top plane (within plane_distance_mm above it) whose surface faces up
+// (normal within kFrameTopMaxTiltDeg of vertical, by PCL's PCA normals over the clustering
+// radius). A standing sherd's faces meet the top plane steeply and stay.
+constexpr double kFrameTopMaxTiltDeg = 30.0;
+
+void remove_frame(const std::vector<Vec3f>& points, const Params& params,
+                  std::vector<std::uint8_t>& keep) {
+  if (params.frame_height_mm <= 0.0) return;
+  const double top = params.frame_height_mm;
+  const double band_top = top + params.plane_distance_mm;
+  // The top band's points are judged; their neighbours up to one radius above it are the surface.
+  auto surface = std::make_shared<pcl::PointCloud<pcl::PointXYZ>>();
+  auto judged = std::make_shared<pcl::Indices>();
+  std::vector<std::uint32_t> judged_points;
+  for (std::uint32_t i = 0; i < points.size(); ++i) {
+    if (!keep[i]) continue;
+    const double z = points[i].z();
+    if (z < top) {
+      keep[i] = 0;
+      continue;
+    }
+    if (z > band_top + params.cluster_tolerance_mm) continue;
+    if (z <= band_top) {
+      judged->push_back(static_cast<int>(surface->size()));
+      judged_points.push_back(i);
+    }
+    surface->push_back({points[i].x(), points[i].y(), points[i].z()});
+  }
+  if (judged->empty()) return;
+  pcl::NormalEstimation<pcl::PointXYZ, pcl::Normal> estimation;
+  estimation.setInputCloud(surface);
+  estimation.setIndices(judged);
+  estimation.setSearchMethod(std::make_shared<pcl::search::KdTree<pcl::PointXYZ>>(false));
+  estimation.setRadiusSearch(params.cluster_tolerance_mm);
+  pcl::PointCloud<pcl::Normal> normals;
+  estimation.compute(normals);
+  const float min_up = static_cast<float>(std::cos(kFrameTopMaxTiltDeg * std::numbers::pi / 180.0));
+  for (std::size_t k = 0; k < judged_points.size(); ++k) {
+    const float nz = normals[k].normal_z;
+    if (std::isfinite(nz) && std::abs(nz) >= min_up) keep[judged_points[k]] = 0;
+  }
 }
 
 bool outside_volume(const Vec3f& p, const Params& params) {
@@ -387,6 +435,7 @@ Result segment(const Mesh& fused, const Params& params) {
   std::vector<std::uint8_t> keep(points.size());
   for (std::size_t i = 0; i < points.size(); ++i) keep[i] = points[i].allFinite() ? 1 : 0;
   remove_support_plane(points, params, keep);
+  remove_frame(points, params, keep);
   const bool by_colour =
       params.background != BackgroundColour::None && fused.vertices.has_colours();
   std::vector<std::uint32_t> candidates;

@@ -33,6 +33,12 @@ struct Params {
   int min_points = 400;
   double min_extent_mm = 12.0;
   double max_extent_mm = 450.0;
+  // The holding frame, by its known geometry: plinths whose flat tops lie this high above the
+  // plate, the sherds standing sunk into them (simulators/pottery.h: 8 mm). Nothing of a sherd
+  // shows below that height, and on the plinths' top plane what faces up is the frame (a standing
+  // sherd's faces there are steep), so the frame goes whatever its colour. 0: no frame (sherds
+  // lying on the plate, whose lower parts are below any plinth height).
+  double frame_height_mm = 0.0;
   double volume_radius_mm = 160.0;  // cylinder about the world z axis; <= 0: no volume cut
   double volume_min_z_mm = 0.5;
   double volume_max_z_mm = 400.0;
@@ -71,9 +77,10 @@ struct Result {
 };
 
 // Steps, in order: non-finite points out; the support plane (fitted on the whole scene, where it
-// is certainly the dominant plane); the scanning volume; background colour (needs colours);
-// Euclidean clustering; touching sherds split (see contact_erosion_mm); size filters. Every point
-// removed by the first four counts in background_points. An empty input gives an empty result.
+// is certainly the dominant plane); the holding frame (frame_height_mm); the scanning volume;
+// background colour (needs colours); Euclidean clustering; touching sherds split (see
+// contact_erosion_mm); size filters. Every point removed by the first four counts in
+// background_points. An empty input gives an empty result.
 Result segment(const Mesh& fused, const Params& params);
 
 }  // namespace sherd::segmentation
