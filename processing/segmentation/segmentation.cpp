@@ -308,12 +308,14 @@ void flood_from_cores(const Graph& near, const std::vector<std::uint32_t>& clust
 // the surface) leaves one core per sherd, and every voxel then goes to the core nearest along the
 // surface (a geodesic watershed). Boundary voxels are those whose neighbourhood lies to one side
 // (its mean is off the centre by more than a quarter of the radius; a half-disk gives 0.42).
-// A core counts only when it could be a sherd by itself (`min_core_voxels`); with fewer than two
+// A core counts only when it could be a sherd by itself (`min_core_voxels`); one smaller than
+// `min_own_core_voxels` is taken for the far side of a step inside a sherd (see
+// Params::contact_min_core_mm2) and its part joins a neighbour; with fewer than two
 // the cluster stays whole.
 std::vector<std::vector<std::uint32_t>> split_at_contacts(
     const Graph& near, const std::vector<Vec3f>& centres, const std::vector<std::uint32_t>& cluster,
-    double radius, double erosion, std::size_t min_core_voxels, std::vector<float>& distance,
-    std::vector<int>& tag) {
+    double radius, double erosion, std::size_t min_core_voxels, std::size_t min_own_core_voxels,
+    std::vector<float>& distance, std::vector<int>& tag) {
   std::vector<std::pair<std::uint32_t, int>> boundary;
   for (auto v : cluster) {
     Vec3f mean = Vec3f::Zero();
@@ -327,17 +329,40 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
   std::vector<std::uint8_t> core(near.size(), 0);
   for (auto v : cluster) core[v] = distance[v] >= erosion;
   std::vector<std::pair<std::uint32_t, int>> seeds;
-  int cores = 0;
+  std::vector<std::size_t> core_size;
   for (const auto& c : components(near, cluster, core)) {
     if (c.size() < min_core_voxels) continue;
-    for (auto v : c) seeds.emplace_back(v, cores);
-    ++cores;
+    for (auto v : c) seeds.emplace_back(v, static_cast<int>(core_size.size()));
+    core_size.push_back(c.size());
   }
   for (auto v : cluster) core[v] = 0;  // `core` is sized for all voxels; leave it clean
+  const int cores = static_cast<int>(core_size.size());
   if (cores < 2) return {cluster};
   flood_from_cores(near, cluster, seeds, distance, tag);
-  std::vector<std::vector<std::uint32_t>> parts(static_cast<std::size_t>(cores));
-  for (auto v : cluster) parts[tag[v]].push_back(v);
+  // A small core's basin joins the basin it shares the longest border with: a step inside one
+  // sherd borders its far side along the step's whole length, a contact only along the contact.
+  std::vector<std::vector<std::size_t>> border(cores, std::vector<std::size_t>(cores, 0));
+  for (auto v : cluster) {
+    for (auto n : near[v]) border[tag[v]][tag[n]] += tag[n] != tag[v];
+  }
+  std::vector<int> group(cores);
+  std::iota(group.begin(), group.end(), 0);
+  auto root = [&](int c) {
+    while (group[c] != c) c = group[c] = group[group[c]];
+    return c;
+  };
+  for (int c = 0; c < cores; ++c) {
+    if (core_size[c] >= min_own_core_voxels) continue;
+    const auto longest = std::max_element(border[c].begin(), border[c].end()) - border[c].begin();
+    if (border[c][longest] > 0) group[root(c)] = root(static_cast<int>(longest));
+  }
+  std::vector<int> part_of(cores, -1);
+  std::vector<std::vector<std::uint32_t>> parts;
+  for (auto v : cluster) {
+    const int g = root(tag[v]);
+    if (part_of[g] < 0) part_of[g] = static_cast<int>(parts.size()), parts.emplace_back();
+    parts[part_of[g]].push_back(v);
+  }
   return parts;
 }
 
@@ -360,9 +385,10 @@ std::vector<std::vector<std::uint32_t>> clusters(const std::vector<Vec3f>& point
   const double leaf = tolerance / kVoxelsPerTolerance;
   // A core must be as large as the smallest sherd's eroded footprint could be.
   const double core_side = std::max(params.min_extent_mm - 2.0 * params.contact_erosion_mm, leaf);
-  const double min_core_mm2 = std::max(1.5 * core_side * core_side, params.contact_min_core_mm2);
   const auto min_core_voxels =
-      static_cast<std::size_t>(std::max(4.0, min_core_mm2 / (leaf * leaf)));
+      static_cast<std::size_t>(std::max(4.0, 1.5 * core_side * core_side / (leaf * leaf)));
+  const auto min_own_core_voxels = std::max(
+      min_core_voxels, static_cast<std::size_t>(params.contact_min_core_mm2 / (leaf * leaf)));
   std::vector<float> distance(voxels.centres.size());
   std::vector<int> tag(voxels.centres.size());
 
@@ -371,7 +397,7 @@ std::vector<std::vector<std::uint32_t>> clusters(const std::vector<Vec3f>& point
     const auto parts =
         params.contact_erosion_mm > 0.0
             ? split_at_contacts(near, voxels.centres, cluster, tolerance, params.contact_erosion_mm,
-                                min_core_voxels, distance, tag)
+                                min_core_voxels, min_own_core_voxels, distance, tag)
             : std::vector<std::vector<std::uint32_t>>{cluster};
     for (const auto& part : parts) {
       std::vector<std::uint32_t> members;

@@ -23,12 +23,13 @@ struct Params {
   // but on the station's fused frame scans, which show both faces of a standing sherd, each face
   // erodes to a core of its own and sherds come out split in two.
   double contact_erosion_mm = 0.0;
-  // A core left by that erosion counts as a sherd of its own only when it covers at least this
-  // much of the plate (and at least what a sherd of min_extent_mm keeps). Smaller cores are the
-  // far side of a step inside one sherd — a ring foot's recess, a lip — cut off from the rest
-  // by the unseen vertical wall between them. Measured on bench_segmentation (100 trays, seeds 1,
-  // 2, 1001): with the old bound (≈ 6 mm²) 84/85/83 % exact counts, 30 mm² 90/90/87 %, 80 mm²
-  // 79 % (seed 1: small cores of genuinely touching sherds lost, merges 5 → 20).
+  // A core left by that erosion stands for a sherd of its own only when it covers at least this
+  // much of the plate; a smaller one (but at least what a sherd of min_extent_mm keeps) is mostly
+  // the far side of a step inside one sherd — a ring foot's recess, a lip — cut off by the unseen
+  // vertical wall between them, and its part joins the part it shares the longest border with.
+  // Measured on bench_segmentation (100 trays; seeds 1, 2, 1001), exact counts: every core a sherd
+  // (the bound ≈ 6 mm²) 84/85/83 %; cores under 30 mm² dropped 90/90/87 %, joined 91/91/87 %;
+  // under 80 mm² dropped 79 % (seed 1: small sherds touching others lost, merges 5 → 20).
   double contact_min_core_mm2 = 30.0;
   int min_points = 400;
   double min_extent_mm = 12.0;
