@@ -339,8 +339,8 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
   const int cores = static_cast<int>(core_size.size());
   if (cores < 2) return {cluster};
   flood_from_cores(near, cluster, seeds, distance, tag);
-  // A small core's basin joins the basin it shares the longest border with: a step inside one
-  // sherd borders its far side along the step's whole length, a contact only along the contact.
+  // A small core's basin joins the neighbouring basin it has most neighbour pairs with — for the
+  // far side of a step, mostly the only one: the rest of its sherd.
   std::vector<std::vector<std::size_t>> border(cores, std::vector<std::size_t>(cores, 0));
   for (auto v : cluster) {
     for (auto n : near[v]) border[tag[v]][tag[n]] += tag[n] != tag[v];
