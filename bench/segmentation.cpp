@@ -1,6 +1,6 @@
 // Benchmark: segmentation of simulated trays (simulators/tray.h) against their per-point truth.
 //   bench_segmentation [--trays 100] [--seed 1] [--grid 0.5] [--million 3]
-//                      [--real DIR] [--overview DIR]
+//                      [--real DIR] [--overview DIR] [--contact-erosion 5]
 // One JSON line per tray: sherds in truth and found, per-point precision and recall, truth sherds
 // merged with another or split, time. Then a summary line (medians, share of trays with the exact
 // count) and, with --million N, N timings of one ≈ 1 M-point tray (20 sherds, 0.265 mm grid).
@@ -89,9 +89,9 @@ seg::Result truth_as_result(const sim::Tray& tray) {
   return truth;
 }
 
-seg::Params params_for(const sim::Tray& tray) {
+seg::Params params_for(const sim::Tray& tray, double contact_erosion_mm) {
   seg::Params params;  // the station's defaults, background as on the tray, contacts split
-  params.contact_erosion_mm = 5.0;
+  params.contact_erosion_mm = contact_erosion_mm;
   params.background = tray.spec.background == sim::Background::Black ? seg::BackgroundColour::Black
                                                                      : seg::BackgroundColour::White;
   return params;
@@ -136,6 +136,9 @@ int main(int argc, char** argv) {
                  "directory of PCL's test clouds (../shared/data/pcl-test-clouds): segment the two "
                  "table scenes and print what was found");
   app.add_option("--million", million, "timings of a ≈ 1 M-point tray")->capture_default_str();
+  double erosion = 5.0;
+  app.add_option("--contact-erosion", erosion, "contact_erosion_mm for the trays")
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
 
   std::vector<double> precisions, recalls, times;
@@ -148,7 +151,7 @@ int main(int argc, char** argv) {
     spec.grid_mm = grid;
     const sim::Tray tray = sim::make_tray(spec);
     const auto start = std::chrono::steady_clock::now();
-    const seg::Result result = seg::segment(tray.cloud, params_for(tray));
+    const seg::Result result = seg::segment(tray.cloud, params_for(tray, erosion));
     const double ms = time_ms(start);
     const Score s = score(tray, result);
     if (!overview_dir.empty()) {
@@ -207,7 +210,7 @@ int main(int argc, char** argv) {
     Score s;
     for (int r = 0; r < million; ++r) {
       const auto start = std::chrono::steady_clock::now();
-      const seg::Result result = seg::segment(tray.cloud, params_for(tray));
+      const seg::Result result = seg::segment(tray.cloud, params_for(tray, erosion));
       big_times.push_back(time_ms(start));
       s = score(tray, result);
     }

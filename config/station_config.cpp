@@ -385,6 +385,7 @@ StationConfig load_station_config(const fs::path& file) {
   segmentation.read("volume_min_z_mm", seg.volume_min_z_mm, any_finite());
   segmentation.read("volume_max_z_mm", seg.volume_max_z_mm, above(seg.volume_min_z_mm));
   segmentation.read("contact_erosion_mm", seg.contact_erosion_mm, from_to(0, 50));
+  segmentation.read("frame_height_mm", seg.frame_height_mm, from_to(0, 100));
   segmentation.reject_unknown_keys();
 
   auto& rs = config.render;

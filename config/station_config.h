@@ -130,6 +130,7 @@ struct SegmentationSettings {
   double volume_min_z_mm = 0.5;          // just above the plate
   double volume_max_z_mm = 400.0;
   double contact_erosion_mm = 0.0;       // split touching sherds (trays seen from above); 0: off
+  double frame_height_mm = 0.0;          // top of the holding frame's plinths; 0: no frame
 };
 
 struct RenderSettings {

@@ -136,6 +136,7 @@ segmentation::Params segmentation_params(const config::SegmentationSettings& s) 
   p.volume_min_z_mm = s.volume_min_z_mm;
   p.volume_max_z_mm = s.volume_max_z_mm;
   p.contact_erosion_mm = s.contact_erosion_mm;
+  p.frame_height_mm = s.frame_height_mm;
   return p;
 }
 

@@ -323,9 +323,11 @@ int cmd_process(const Options& options, const std::vector<std::string>& files, c
       sherd::db::make_event_sink(store)};
   spdlog::set_default_logger(std::make_shared<spdlog::logger>("sherdctl", sinks.begin(), sinks.end()));
 
-  // Files are not on the station's plate: no scanning volume; the background only if asked for.
+  // Files are not on the station's plate: no scanning volume, no holding frame; the background
+  // only if asked for.
   auto params = sherd::station::segmentation_params(config.segmentation);
   params.volume_radius_mm = 0.0;
+  params.frame_height_mm = 0.0;
   params.background = background == "black"   ? sherd::segmentation::BackgroundColour::Black
                       : background == "white" ? sherd::segmentation::BackgroundColour::White
                                               : sherd::segmentation::BackgroundColour::None;

@@ -7,12 +7,14 @@
 #include <fmt/format.h>
 #include <pcl/ModelCoefficients.h>
 #include <pcl/PointIndices.h>
+#include <pcl/features/normal_3d.h>
 #include <pcl/point_types.h>
 #include <pcl/search/kdtree.h>
 #include <pcl/segmentation/sac_segmentation.h>
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <numeric>
 #include <queue>
 
@@ -48,6 +50,10 @@ void check_params(const Params& p) {
   }
   if (!(p.contact_erosion_mm >= 0.0))
     bad(fmt::format("contact_erosion_mm = {} must be >= 0", p.contact_erosion_mm));
+  if (!(p.contact_min_core_mm2 >= 0.0))
+    bad(fmt::format("contact_min_core_mm2 = {} must be >= 0", p.contact_min_core_mm2));
+  if (!(p.frame_height_mm >= 0.0))
+    bad(fmt::format("frame_height_mm = {} must be >= 0", p.frame_height_mm));
   if (!(p.plane_distance_mm > 0.0))
     bad(fmt::format("plane_distance_mm = {} must be > 0", p.plane_distance_mm));
 }
@@ -94,6 +100,50 @@ void remove_support_plane(const std::vector<Vec3f>& points, const Params& params
   }
   if (largest_side(points, inliers) < params.plane_min_extent_mm) return;
   for (auto i : inliers) keep[i] = 0;
+}
+
+// The holding frame by its geometry (see Params::frame_height_mm): points below the plinths' top
+// go, and points on the top plane (within plane_distance_mm above it) whose surface faces up
+// (normal within kFrameTopMaxTiltDeg of vertical, by PCL's PCA normals over the clustering
+// radius). A standing sherd's faces meet the top plane steeply and stay.
+constexpr double kFrameTopMaxTiltDeg = 30.0;
+
+void remove_frame(const std::vector<Vec3f>& points, const Params& params,
+                  std::vector<std::uint8_t>& keep) {
+  if (params.frame_height_mm <= 0.0) return;
+  const double top = params.frame_height_mm;
+  const double band_top = top + params.plane_distance_mm;
+  // The top band's points are judged; their neighbours up to one radius above it are the surface.
+  auto surface = std::make_shared<pcl::PointCloud<pcl::PointXYZ>>();
+  auto judged = std::make_shared<pcl::Indices>();
+  std::vector<std::uint32_t> judged_points;
+  for (std::uint32_t i = 0; i < points.size(); ++i) {
+    if (!keep[i]) continue;
+    const double z = points[i].z();
+    if (z < top) {
+      keep[i] = 0;
+      continue;
+    }
+    if (z > band_top + params.cluster_tolerance_mm) continue;
+    if (z <= band_top) {
+      judged->push_back(static_cast<int>(surface->size()));
+      judged_points.push_back(i);
+    }
+    surface->push_back({points[i].x(), points[i].y(), points[i].z()});
+  }
+  if (judged->empty()) return;
+  pcl::NormalEstimation<pcl::PointXYZ, pcl::Normal> estimation;
+  estimation.setInputCloud(surface);
+  estimation.setIndices(judged);
+  estimation.setSearchMethod(std::make_shared<pcl::search::KdTree<pcl::PointXYZ>>(false));
+  estimation.setRadiusSearch(params.cluster_tolerance_mm);
+  pcl::PointCloud<pcl::Normal> normals;
+  estimation.compute(normals);
+  const float min_up = static_cast<float>(std::cos(kFrameTopMaxTiltDeg * std::numbers::pi / 180.0));
+  for (std::size_t k = 0; k < judged_points.size(); ++k) {
+    const float nz = normals[k].normal_z;
+    if (std::isfinite(nz) && std::abs(nz) >= min_up) keep[judged_points[k]] = 0;
+  }
 }
 
 bool outside_volume(const Vec3f& p, const Params& params) {
@@ -258,12 +308,14 @@ void flood_from_cores(const Graph& near, const std::vector<std::uint32_t>& clust
 // the surface) leaves one core per sherd, and every voxel then goes to the core nearest along the
 // surface (a geodesic watershed). Boundary voxels are those whose neighbourhood lies to one side
 // (its mean is off the centre by more than a quarter of the radius; a half-disk gives 0.42).
-// A core counts only when it could be a sherd by itself (`min_core_voxels`); with fewer than two
+// A core counts only when it could be a sherd by itself (`min_core_voxels`); one smaller than
+// `min_own_core_voxels` is taken for the far side of a step inside a sherd (see
+// Params::contact_min_core_mm2) and its part joins a neighbour; with fewer than two
 // the cluster stays whole.
 std::vector<std::vector<std::uint32_t>> split_at_contacts(
     const Graph& near, const std::vector<Vec3f>& centres, const std::vector<std::uint32_t>& cluster,
-    double radius, double erosion, std::size_t min_core_voxels, std::vector<float>& distance,
-    std::vector<int>& tag) {
+    double radius, double erosion, std::size_t min_core_voxels, std::size_t min_own_core_voxels,
+    std::vector<float>& distance, std::vector<int>& tag) {
   std::vector<std::pair<std::uint32_t, int>> boundary;
   for (auto v : cluster) {
     Vec3f mean = Vec3f::Zero();
@@ -277,17 +329,40 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
   std::vector<std::uint8_t> core(near.size(), 0);
   for (auto v : cluster) core[v] = distance[v] >= erosion;
   std::vector<std::pair<std::uint32_t, int>> seeds;
-  int cores = 0;
+  std::vector<std::size_t> core_size;
   for (const auto& c : components(near, cluster, core)) {
     if (c.size() < min_core_voxels) continue;
-    for (auto v : c) seeds.emplace_back(v, cores);
-    ++cores;
+    for (auto v : c) seeds.emplace_back(v, static_cast<int>(core_size.size()));
+    core_size.push_back(c.size());
   }
   for (auto v : cluster) core[v] = 0;  // `core` is sized for all voxels; leave it clean
+  const int cores = static_cast<int>(core_size.size());
   if (cores < 2) return {cluster};
   flood_from_cores(near, cluster, seeds, distance, tag);
-  std::vector<std::vector<std::uint32_t>> parts(static_cast<std::size_t>(cores));
-  for (auto v : cluster) parts[tag[v]].push_back(v);
+  // A small core's basin joins the neighbouring basin it has most neighbour pairs with — for the
+  // far side of a step, mostly the only one: the rest of its sherd.
+  std::vector<std::vector<std::size_t>> border(cores, std::vector<std::size_t>(cores, 0));
+  for (auto v : cluster) {
+    for (auto n : near[v]) border[tag[v]][tag[n]] += tag[n] != tag[v];
+  }
+  std::vector<int> group(cores);
+  std::iota(group.begin(), group.end(), 0);
+  auto root = [&](int c) {
+    while (group[c] != c) c = group[c] = group[group[c]];
+    return c;
+  };
+  for (int c = 0; c < cores; ++c) {
+    if (core_size[c] >= min_own_core_voxels) continue;
+    const auto longest = std::max_element(border[c].begin(), border[c].end()) - border[c].begin();
+    if (border[c][longest] > 0) group[root(c)] = root(static_cast<int>(longest));
+  }
+  std::vector<int> part_of(cores, -1);
+  std::vector<std::vector<std::uint32_t>> parts;
+  for (auto v : cluster) {
+    const int g = root(tag[v]);
+    if (part_of[g] < 0) part_of[g] = static_cast<int>(parts.size()), parts.emplace_back();
+    parts[part_of[g]].push_back(v);
+  }
   return parts;
 }
 
@@ -312,6 +387,8 @@ std::vector<std::vector<std::uint32_t>> clusters(const std::vector<Vec3f>& point
   const double core_side = std::max(params.min_extent_mm - 2.0 * params.contact_erosion_mm, leaf);
   const auto min_core_voxels =
       static_cast<std::size_t>(std::max(4.0, 1.5 * core_side * core_side / (leaf * leaf)));
+  const auto min_own_core_voxels = std::max(
+      min_core_voxels, static_cast<std::size_t>(params.contact_min_core_mm2 / (leaf * leaf)));
   std::vector<float> distance(voxels.centres.size());
   std::vector<int> tag(voxels.centres.size());
 
@@ -320,7 +397,7 @@ std::vector<std::vector<std::uint32_t>> clusters(const std::vector<Vec3f>& point
     const auto parts =
         params.contact_erosion_mm > 0.0
             ? split_at_contacts(near, voxels.centres, cluster, tolerance, params.contact_erosion_mm,
-                                min_core_voxels, distance, tag)
+                                min_core_voxels, min_own_core_voxels, distance, tag)
             : std::vector<std::vector<std::uint32_t>>{cluster};
     for (const auto& part : parts) {
       std::vector<std::uint32_t> members;
@@ -384,6 +461,7 @@ Result segment(const Mesh& fused, const Params& params) {
   std::vector<std::uint8_t> keep(points.size());
   for (std::size_t i = 0; i < points.size(); ++i) keep[i] = points[i].allFinite() ? 1 : 0;
   remove_support_plane(points, params, keep);
+  remove_frame(points, params, keep);
   const bool by_colour =
       params.background != BackgroundColour::None && fused.vertices.has_colours();
   std::vector<std::uint32_t> candidates;

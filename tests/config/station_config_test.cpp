@@ -113,7 +113,8 @@ TEST_F(StationConfigTest, ShippedFileWritesOutEverySetting) {
         "max_correction_deg", "max_correction_mm"}},
       {"segmentation",
        {"background", "cluster_tolerance_mm", "min_points", "min_extent_mm", "max_extent_mm",
-        "volume_radius_mm", "volume_min_z_mm", "volume_max_z_mm", "contact_erosion_mm"}},
+        "volume_radius_mm", "volume_min_z_mm", "volume_max_z_mm", "contact_erosion_mm",
+        "frame_height_mm"}},
       {"render", {"dpi", "material", "materials_file", "section_side"}},
   };
   const toml::table shipped = toml::parse_file(kShipped.string());
@@ -170,6 +171,7 @@ turntable_file = "cal/tt.json"
 refine_with_icp = false
 [segmentation]
 contact_erosion_mm = 5
+frame_height_mm = 12
 [render]
 section_side = "left"
 )"));
@@ -189,6 +191,7 @@ section_side = "left"
   EXPECT_EQ(c.calibration.turntable_file, fs::current_path() / "cal" / "tt.json");
   EXPECT_FALSE(c.registration.refine_with_icp);
   EXPECT_EQ(c.segmentation.contact_erosion_mm, 5.0);
+  EXPECT_EQ(c.segmentation.frame_height_mm, 12.0);
   EXPECT_EQ(c.render.section_side, "left");
 }
 
