@@ -197,6 +197,7 @@ struct Row {
          rim_percent_points = NAN, wall_mm = NAN;
   double angle_sd_deg = NAN, offset_sd_mm = NAN;
   double rim_diameter_sd_pct = NAN;  // propagated from the axis sds (profile::MeasurementSds)
+  double profile_spread_mm = NAN;    // refined: the points' spread about the common profile
   std::string reason;
 };
 
@@ -207,6 +208,7 @@ Row evaluate(const Cloud& cloud, const Truth& truth, sherd::axis::Method method)
   row.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   row.found = axis.found;
   row.reason = axis.reason;
+  if (axis.profile_spread_mm > 0.0) row.profile_spread_mm = axis.profile_spread_mm;
   if (!axis.found) return row;
   const Vec3d direction = axis.direction.normalized();
   row.axis_deg =
@@ -359,6 +361,7 @@ int main(int argc, char** argv) {
                                   {"rim_percent_error_points",
                                    number_or_null(row.rim_percent_points)},
                                   {"wall_thickness_error_mm", number_or_null(row.wall_mm)},
+                                  {"profile_spread_mm", number_or_null(row.profile_spread_mm)},
                                   {"seconds", row.seconds}}
                        .dump()
                 << std::endl;

@@ -28,7 +28,10 @@ struct AxisEstimate {
   double offset_sd_mm = 0.0;
   double rms_mm = 0.0;        // RMS distance of inlier normal lines to the axis
   double inlier_share = 0.0;  // among the normal lines not near-parallel to the axis
-  std::string reason;         // when !found: too few points, too flat, not rotational, …
+  // Refined method: robust sd (mm) of the skin points about the one profile all azimuths share
+  // (each point against its neighbours in the (r, z) half-plane from other azimuths).
+  double profile_spread_mm = 0.0;
+  std::string reason;  // when !found: too few points, too flat, not rotational, …
 };
 
 struct Params {

@@ -344,6 +344,20 @@ AxisEstimate refine_axis(const Cloud& sherd, const AxisEstimate& start,
                          x.tail<2>().norm() < params.settled_shift_mm;
     if (round + 1 >= params.min_rounds && settled) break;
   }
+  // How far the sherd is from a surface of revolution about the final axis: the robust sd of the
+  // skin points' distances from their neighbours of other azimuths (fracture faces left out).
+  {
+    to_half_plane(problem.points, problem.normals, axis, hp);
+    if (prepare_round(problem, hp, round_across_mm, params)) {
+      std::vector<double> skin_residuals;
+      for (std::size_t k = 0; k < problem.used.size(); ++k) {
+        if (problem.sqrt_face_weight[k] < 1.0) continue;
+        skin_residuals.push_back(
+            std::abs(local_line_distance(hp, problem.used[k], problem.neighbours[k])));
+      }
+      estimate.profile_spread_mm = 1.4826 * median_of(std::move(skin_residuals));
+    }
+  }
   int replicas = 0;
   Eigen::Matrix4d covariance = sector_jackknife(problem, axis, round_across_mm, params, &replicas);
   // Where the rounds stop before the axis settles (each round's neighbourhoods, found about the
