@@ -198,6 +198,7 @@ struct Row {
   double angle_sd_deg = NAN, offset_sd_mm = NAN;
   double rim_diameter_sd_pct = NAN;  // propagated from the axis sds (profile::MeasurementSds)
   double profile_spread_mm = NAN;    // refined: the points' spread about the common profile
+  double local_scatter_mm = NAN;     // … and about their own azimuth's
   std::string reason;
 };
 
@@ -209,6 +210,7 @@ Row evaluate(const Cloud& cloud, const Truth& truth, sherd::axis::Method method)
   row.found = axis.found;
   row.reason = axis.reason;
   if (axis.profile_spread_mm > 0.0) row.profile_spread_mm = axis.profile_spread_mm;
+  if (axis.local_scatter_mm > 0.0) row.local_scatter_mm = axis.local_scatter_mm;
   if (!axis.found) return row;
   const Vec3d direction = axis.direction.normalized();
   row.axis_deg =
@@ -362,6 +364,7 @@ int main(int argc, char** argv) {
                                    number_or_null(row.rim_percent_points)},
                                   {"wall_thickness_error_mm", number_or_null(row.wall_mm)},
                                   {"profile_spread_mm", number_or_null(row.profile_spread_mm)},
+                                  {"local_scatter_mm", number_or_null(row.local_scatter_mm)},
                                   {"seconds", row.seconds}}
                        .dump()
                 << std::endl;
