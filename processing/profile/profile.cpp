@@ -677,9 +677,14 @@ Analysis analyse_about(const Cloud& sherd, const axis::AxisEstimate& axis, const
   };
   Coverage arc = sherd_arc();
   const double half_width = params.section_half_width_deg * kDegToRad;
-  // The wall thickness (orientation-free) sets the scale at which an end's face is a lip or a base.
-  const auto provisional_wall = median_through(through_wall(
-      section_slab(pts, section_azimuths(pts, half_width, arc.middle_rad)[0], half_width)));
+  // The wall thickness (orientation-free) sets the scale at which an end's face is a lip or a base:
+  // from the first candidate section that shows both skins, as for the profile below (with two
+  // level ends every azimuth's extent ties, and the best candidate showed none on a test sherd).
+  std::optional<double> provisional_wall;
+  for (const double azimuth : section_azimuths(pts, half_width, arc.middle_rad)) {
+    provisional_wall = median_through(through_wall(section_slab(pts, azimuth, half_width)));
+    if (provisional_wall) break;
+  }
   if (!provisional_wall) {
     throw ProcessingError(
         "profile: no two skins a wall apart in the section; the scan shows only one "
