@@ -258,7 +258,8 @@ EndKind classify(const EndShape& e, double wall_mm) {
 // Otherwise (two breaks: a body sherd; or two ends of one kind) the wider end is taken as the
 // top — most vessels widen from the base upwards — and the orientation is marked uncertain.
 // has_rim is claimed only for a lip at the top, has_base only for a base at the bottom: a break
-// is never a rim.
+// is never a rim. (README, "sherd.json: the axis, the orientation and the profile", spells the
+// rule out with classify's thresholds for the archaeologist.)
 struct Orientation {
   bool flip = false;  // the rim is at the provisional -z end
   bool certain = false;
