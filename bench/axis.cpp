@@ -16,6 +16,7 @@
 #include <pcl/point_types.h>
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <iostream>
@@ -305,6 +306,10 @@ int main(int argc, char** argv) {
                "normals estimated from the sampled points (PCA, 12 neighbours) instead of the "
                "mesh's");
   app.add_option("--methods", methods_arg, "comma-separated method names (default: all)");
+  std::vector<int> only;
+  app.add_option("--only", only,
+                 "evaluate only these sherd numbers (the same sherds as in the full run)")
+      ->delimiter(',');
   CLI11_PARSE(app, argc, argv);
 
   std::vector<sherd::axis::Method> methods;
@@ -335,6 +340,10 @@ int main(int argc, char** argv) {
     const double max_extent = sherd_rng.uniform(40.0, 220.0);
     auto made_sherd = make_sherd(family, kind, max_extent, sampling, sherd_rng);
     if (!made_sherd) continue;
+    if (!only.empty() && std::find(only.begin(), only.end(), made) == only.end()) {
+      ++made;
+      continue;
+    }
     const auto& [cloud, truth] = *made_sherd;
     const auto upright = stood_up(cloud, truth, 20.0, sherd_rng);
     for (const auto method : methods) {
