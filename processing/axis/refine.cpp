@@ -332,7 +332,9 @@ Spread profile_spread(const Problem& problem, const Line& axis, const RefinePara
 // Records the figures; marks the estimate not found and returns false when the spread is more
 // than max_spread_ratio times the scatter and more than max_excess_spread_mm beyond it
 // (√(spread² − scatter²)).
-bool judge_wheel_made(AxisEstimate& estimate, const Spread& spread, const RefineParams& params) {
+// `verdict` opens the reason.
+bool judge_wheel_made(AxisEstimate& estimate, const Spread& spread, const RefineParams& params,
+                      const std::string& verdict = "not wheel-made") {
   estimate.profile_spread_mm = spread.across_azimuths_mm;
   estimate.local_scatter_mm = spread.within_azimuth_mm;
   const double excess =
@@ -344,10 +346,10 @@ bool judge_wheel_made(AxisEstimate& estimate, const Spread& spread, const Refine
   }
   estimate.found = false;
   estimate.reason = fmt::format(
-      "not wheel-made: the profile spreads {:.2f} mm around the fitted surface of revolution "
-      "against {:.2f} mm of local scatter ({:.2f} mm beyond it; a wheel-made sherd spreads as "
-      "much as it scatters); a hand-made or irregular piece has no axis to draw it about",
-      spread.across_azimuths_mm, spread.within_azimuth_mm, excess);
+      "{}: the profile spreads {:.2f} mm around the fitted surface of revolution against {:.2f} "
+      "mm of local scatter ({:.2f} mm beyond it; a wheel-made sherd spreads as much as it "
+      "scatters); a hand-made or irregular piece has no axis to draw it about",
+      verdict, spread.across_azimuths_mm, spread.within_azimuth_mm, excess);
   return false;
 }
 
@@ -422,7 +424,11 @@ AxisEstimate refine_axis(const Cloud& sherd, const AxisEstimate& start,
     estimate.reason = fmt::format(
         "profile-consistency refinement diverged ({:.1f} deg from the start); the start stands",
         moved_deg);
-    judge_wheel_made(estimate, profile_spread(problem, start_line, params), params);
+    // About the start, which stands: a large spread there may also be a start far off the axis.
+    judge_wheel_made(estimate, profile_spread(problem, start_line, params), params,
+                     fmt::format("not wheel-made, or no axis near the start (the "
+                                 "profile-consistency refinement diverged by {:.1f} deg)",
+                                 moved_deg));
     return estimate;
   }
   if (axis.direction.dot(start_direction) < 0.0) axis.direction = -axis.direction;
