@@ -16,6 +16,7 @@
 #include <pcl/point_types.h>
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <iostream>
@@ -197,6 +198,8 @@ struct Row {
          rim_percent_points = NAN, wall_mm = NAN;
   double angle_sd_deg = NAN, offset_sd_mm = NAN;
   double rim_diameter_sd_pct = NAN;  // propagated from the axis sds (profile::MeasurementSds)
+  double profile_spread_mm = NAN;    // refined: the points' spread about the common profile
+  double local_scatter_mm = NAN;     // … and about their own azimuth's
   std::string reason;
 };
 
@@ -207,6 +210,8 @@ Row evaluate(const Cloud& cloud, const Truth& truth, sherd::axis::Method method)
   row.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   row.found = axis.found;
   row.reason = axis.reason;
+  if (axis.profile_spread_mm > 0.0) row.profile_spread_mm = axis.profile_spread_mm;
+  if (axis.local_scatter_mm > 0.0) row.local_scatter_mm = axis.local_scatter_mm;
   if (!axis.found) return row;
   const Vec3d direction = axis.direction.normalized();
   row.axis_deg =
@@ -301,6 +306,10 @@ int main(int argc, char** argv) {
                "normals estimated from the sampled points (PCA, 12 neighbours) instead of the "
                "mesh's");
   app.add_option("--methods", methods_arg, "comma-separated method names (default: all)");
+  std::vector<int> only;
+  app.add_option("--only", only,
+                 "evaluate only these sherd numbers (the same sherds as in the full run)")
+      ->delimiter(',');
   CLI11_PARSE(app, argc, argv);
 
   std::vector<sherd::axis::Method> methods;
@@ -331,6 +340,10 @@ int main(int argc, char** argv) {
     const double max_extent = sherd_rng.uniform(40.0, 220.0);
     auto made_sherd = make_sherd(family, kind, max_extent, sampling, sherd_rng);
     if (!made_sherd) continue;
+    if (!only.empty() && std::find(only.begin(), only.end(), made) == only.end()) {
+      ++made;
+      continue;
+    }
     const auto& [cloud, truth] = *made_sherd;
     const auto upright = stood_up(cloud, truth, 20.0, sherd_rng);
     for (const auto method : methods) {
@@ -359,6 +372,8 @@ int main(int argc, char** argv) {
                                   {"rim_percent_error_points",
                                    number_or_null(row.rim_percent_points)},
                                   {"wall_thickness_error_mm", number_or_null(row.wall_mm)},
+                                  {"profile_spread_mm", number_or_null(row.profile_spread_mm)},
+                                  {"local_scatter_mm", number_or_null(row.local_scatter_mm)},
                                   {"seconds", row.seconds}}
                        .dump()
                 << std::endl;

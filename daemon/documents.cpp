@@ -71,6 +71,10 @@ nlohmann::json sherd_document(const std::string& scan_id, const std::string& she
     profile = {{"outer", polyline(analysis->profile.outer)}, {"inner", polyline(analysis->profile.inner)}};
     // Added fields: the closed section and the measurements' sds propagated from the axis's.
     profile["section"] = polyline(analysis->profile.section);
+    // Added: the aggregate profile over all azimuths and the points' spread about it.
+    profile["aggregate"] = {{"outer", polyline(analysis->profile.aggregate_outer)},
+                            {"inner", polyline(analysis->profile.aggregate_inner)},
+                            {"spread_mm", analysis->profile.aggregate_spread_mm}};
     const auto& sd = analysis->measurement_sds;
     doc["measurement_sds"] = {
         {"rim_diameter_mm", optional_number(sd.rim_diameter_mm)},

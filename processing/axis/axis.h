@@ -28,7 +28,12 @@ struct AxisEstimate {
   double offset_sd_mm = 0.0;
   double rms_mm = 0.0;        // RMS distance of inlier normal lines to the axis
   double inlier_share = 0.0;  // among the normal lines not near-parallel to the axis
-  std::string reason;         // when !found: too few points, too flat, not rotational, …
+  // Refined method: robust sd (mm) of the skin points about the one profile all azimuths share
+  // (each point against its neighbours in the (r, z) half-plane from other azimuths).
+  double profile_spread_mm = 0.0;
+  // … and against neighbours from the same azimuths: the scan's noise and the surface's roughness.
+  double local_scatter_mm = 0.0;
+  std::string reason;  // when !found: too few points, too flat, not rotational, …
 };
 
 struct Params {
@@ -119,6 +124,12 @@ struct RefineParams {
   int jackknife_sectors = 4;
   int jackknife_bands = 2;
   double max_angle_sd_deg = 5.0;  // beyond: the axis is too poorly constrained to report
+  // Not wheel-made (refine.cpp, judge_wheel_made): the points spread about the profile common to
+  // all azimuths more than max_spread_ratio × their scatter about their own azimuth's, and more
+  // than max_excess_spread_mm beyond it — 1.5 × the largest depth noise the station is specified
+  // for (0.1 mm). Simulated wheel-made sherds stay below ratio 1.2; ±4 mm lobes give 1.9–4.3.
+  double max_spread_ratio = 1.5;
+  double max_excess_spread_mm = 0.15;
   std::uint64_t seed = 11;
 };
 AxisEstimate refine_axis(const Cloud& sherd, const AxisEstimate& start,

@@ -258,7 +258,8 @@ EndKind classify(const EndShape& e, double wall_mm) {
 // Otherwise (two breaks: a body sherd; or two ends of one kind) the wider end is taken as the
 // top — most vessels widen from the base upwards — and the orientation is marked uncertain.
 // has_rim is claimed only for a lip at the top, has_base only for a base at the bottom: a break
-// is never a rim.
+// is never a rim. (README, "sherd.json: the axis, the orientation and the profile", spells the
+// rule out with classify's thresholds for the archaeologist.)
 struct Orientation {
   bool flip = false;  // the rim is at the provisional -z end
   bool certain = false;
@@ -396,15 +397,17 @@ std::optional<double> median_through(const std::vector<double>& through) {
   return finite[finite.size() / 2];
 }
 
-// The points of the two skins: those with a partner within twice the typical wall thickness.
+// The points of the two skins: those with a partner between half and twice the typical wall
+// thickness away. The lower bound drops the faces across the wall's ends that happen to look at a
+// steep groove flank a few millimetres away (a lip's top, a break's face).
 std::vector<SectionPoint> keep_skin_points(const std::vector<SectionPoint>& section) {
   const auto through = through_wall(section);
   const auto wall = median_through(through);
   if (!wall) return {};
-  const double limit = 2.0 * *wall + 0.5;
+  const double low = 0.5 * *wall, high = 2.0 * *wall + 0.5;
   std::vector<SectionPoint> kept;
   for (std::size_t i = 0; i < section.size(); ++i) {
-    if (through[i] <= limit) kept.push_back(section[i]);
+    if (through[i] >= low && through[i] <= high) kept.push_back(section[i]);
   }
   return kept;
 }
@@ -446,6 +449,44 @@ int farthest(const std::vector<double>& dist) {
   return best;
 }
 
+// Where a skin's curve is followed from: its highest point, the top of the curve's main piece.
+// The graph may fall into pieces: a scan hole on either skin leaves a gap in the skin points, and
+// stray points of the other faces that pass the skin filter (a lip's top facing a groove's flank
+// across the wall) form small pieces of their own. The highest point is therefore taken among the
+// pieces with at least kMainPiece of the largest one's points: a stray piece started from would
+// draw the skin as a chord of itself; between the substantial pieces of a holed skin, the highest
+// is the one that carries the rim.
+int sweep_start(const std::vector<Vec2>& pts,
+                const std::vector<std::vector<std::pair<int, double>>>& graph) {
+  constexpr double kMainPiece = 0.25;
+  std::vector<int> piece(graph.size(), -1);
+  std::vector<int> size;
+  for (int seed = 0; seed < static_cast<int>(graph.size()); ++seed) {
+    if (piece[seed] >= 0) continue;
+    const int label = static_cast<int>(size.size());
+    size.push_back(0);
+    std::vector<int> stack{seed};
+    piece[seed] = label;
+    while (!stack.empty()) {
+      const int u = stack.back();
+      stack.pop_back();
+      ++size[label];
+      for (const auto& [v, w] : graph[u]) {
+        if (piece[v] < 0) {
+          piece[v] = label;
+          stack.push_back(v);
+        }
+      }
+    }
+  }
+  const int largest = *std::max_element(size.begin(), size.end());
+  int top = -1;
+  for (int i = 0; i < static_cast<int>(pts.size()); ++i) {
+    if (size[piece[i]] >= kMainPiece * largest && (top < 0 || pts[i].y() > pts[top].y())) top = i;
+  }
+  return top;
+}
+
 // One skin's points → an ordered polyline from the base end to the rim end. The points lie along a
 // curve, so the curve's two ends are found by a double sweep of geodesic distances (the farthest
 // point from anywhere is an end; the farthest from that the other end); points are then binned by
@@ -466,12 +507,8 @@ Polyline2 skin_polyline(const std::vector<Vec2>& pts) {
       if (found[k] != i) graph[i].push_back({found[k], std::sqrt(double(sq[k]))});
     }
   }
-  // Sweep from the highest point: it belongs to the main piece of the curve.
-  int top = 0;
-  for (int i = 1; i < static_cast<int>(pts.size()); ++i) {
-    if (pts[i].y() > pts[top].y()) top = i;
-  }
-  const int end_a = farthest(geodesic_from(graph, top));
+  const int start = sweep_start(pts, graph);
+  const int end_a = farthest(geodesic_from(graph, start));
   std::vector<double> from_a = geodesic_from(graph, end_a);
   const int end_b = farthest(from_a);
   const std::vector<double> s =
@@ -504,6 +541,27 @@ Polyline2 skin_polyline(const std::vector<Vec2>& pts) {
 
 Vec2 as_vec(const std::array<double, 2>& a) { return {a[0], a[1]}; }
 
+// The distance from p to a polyline, and whether its nearest point lies inside the polyline (not
+// at one of its two end vertices). Brute force: profiles have a few hundred vertices.
+struct Nearest {
+  double distance = std::numeric_limits<double>::infinity();
+  bool interior = false;
+};
+Nearest nearest_on(const Polyline2& line, const Vec2& p) {
+  Nearest best;
+  for (std::size_t k = 0; k + 1 < line.size(); ++k) {
+    const Vec2 a = as_vec(line[k]), b = as_vec(line[k + 1]);
+    const Vec2 ab = b - a;
+    const double t = std::clamp((p - a).dot(ab) / std::max(ab.squaredNorm(), 1e-12), 0.0, 1.0);
+    const double d = (a + t * ab - p).norm();
+    if (d < best.distance) {
+      best.distance = d;
+      best.interior = !((k == 0 && t == 0.0) || (k + 2 == line.size() && t == 1.0));
+    }
+  }
+  return best;
+}
+
 // Distances from the outer curve's vertices to the inner curve, where the perpendicular foot lies
 // inside the inner curve (at the broken ends the nearest inner point is an end point, not across
 // the wall).
@@ -514,28 +572,47 @@ WallThickness wall_thickness(const Polyline2& outer, const Polyline2& inner) {
   int n = 0;
   w.min = std::numeric_limits<double>::infinity();
   for (const auto& o : outer) {
-    const Vec2 p = as_vec(o);
-    double best = std::numeric_limits<double>::infinity();
-    bool interior = false;
-    for (std::size_t k = 0; k + 1 < inner.size(); ++k) {
-      const Vec2 a = as_vec(inner[k]), b = as_vec(inner[k + 1]);
-      const Vec2 ab = b - a;
-      const double t = std::clamp((p - a).dot(ab) / std::max(ab.squaredNorm(), 1e-12), 0.0, 1.0);
-      const double d = (a + t * ab - p).norm();
-      if (d < best) {
-        best = d;
-        interior = !((k == 0 && t == 0.0) || (k + 2 == inner.size() && t == 1.0));
-      }
-    }
-    if (!interior) continue;
-    w.min = std::min(w.min, best);
-    w.max = std::max(w.max, best);
-    sum += best;
+    const Nearest across = nearest_on(inner, as_vec(o));
+    if (!across.interior) continue;
+    w.min = std::min(w.min, across.distance);
+    w.max = std::max(w.max, across.distance);
+    sum += across.distance;
     ++n;
   }
   if (n == 0) return {};
   w.mean = sum / n;
   return w;
+}
+
+// The aggregate profile (Profile::aggregate_*): the skin points of all azimuths, mapped into the
+// half-plane, through the same skin filter and curve follower as one section. At most
+// kAggregatePoints points, evenly strided (the skin filter is quadratic in the points).
+void aggregate_profile(const std::vector<CylPoint>& pts, Profile& profile) {
+  constexpr std::size_t kAggregatePoints = 4000;
+  std::vector<SectionPoint> all;
+  const std::size_t stride = std::max<std::size_t>(1, pts.size() / kAggregatePoints);
+  for (std::size_t i = 0; i < pts.size(); i += stride) {
+    const Vec2 n(pts[i].n_r, pts[i].n_h);
+    if (n.norm() >= 0.7) all.push_back({{pts[i].r, pts[i].h}, n.normalized()});
+  }
+  std::vector<Vec2> outer_pts, inner_pts;
+  for (const auto& sp : keep_skin_points(all)) {
+    (is_outer(sp.normal) ? outer_pts : inner_pts).push_back(sp.rz);
+  }
+  profile.aggregate_outer = skin_polyline(outer_pts);
+  profile.aggregate_inner = skin_polyline(inner_pts);
+  std::vector<double> distances;
+  for (const auto& [skin, line] : {std::pair{&outer_pts, &profile.aggregate_outer},
+                                   std::pair{&inner_pts, &profile.aggregate_inner}}) {
+    if (line->size() < 2) continue;
+    for (const Vec2& p : *skin) {
+      const Nearest n = nearest_on(*line, p);
+      if (n.interior) distances.push_back(n.distance);
+    }
+  }
+  if (distances.empty()) return;
+  std::nth_element(distances.begin(), distances.begin() + distances.size() / 2, distances.end());
+  profile.aggregate_spread_mm = 1.4826 * distances[distances.size() / 2];
 }
 
 // Capacity: the solid of revolution under the inner curve, ∮ π r² dz over the closed loop
@@ -601,9 +678,14 @@ Analysis analyse_about(const Cloud& sherd, const axis::AxisEstimate& axis, const
   };
   Coverage arc = sherd_arc();
   const double half_width = params.section_half_width_deg * kDegToRad;
-  // The wall thickness (orientation-free) sets the scale at which an end's face is a lip or a base.
-  const auto provisional_wall = median_through(through_wall(
-      section_slab(pts, section_azimuths(pts, half_width, arc.middle_rad)[0], half_width)));
+  // The wall thickness (orientation-free) sets the scale at which an end's face is a lip or a base:
+  // from the first candidate section that shows both skins, as for the profile below (with two
+  // level ends every azimuth's extent ties, and the best candidate showed none on a test sherd).
+  std::optional<double> provisional_wall;
+  for (const double azimuth : section_azimuths(pts, half_width, arc.middle_rad)) {
+    provisional_wall = median_through(through_wall(section_slab(pts, azimuth, half_width)));
+    if (provisional_wall) break;
+  }
   if (!provisional_wall) {
     throw ProcessingError(
         "profile: no two skins a wall apart in the section; the scan shows only one "
@@ -662,6 +744,8 @@ Analysis analyse_about(const Cloud& sherd, const axis::AxisEstimate& axis, const
                     "one side of the sherd: scan both faces",
                     missing));
   }
+
+  if (!fixed) aggregate_profile(pts, result.profile);
 
   Measurements& m = result.measurements;
   double h_min = std::numeric_limits<double>::infinity(), h_max = -h_min;

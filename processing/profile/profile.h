@@ -22,6 +22,13 @@ struct Profile {
   Polyline2 section;
   double section_angle_rad =
       0.0;  // azimuth (about the axis, sherd frame) of the section half-plane
+  // The aggregate profile: the skins' mean curves over the points of every azimuth (what the
+  // axis refinement makes thin), from base end towards rim end; longer and less noisy than one
+  // section. Its spread is the robust sd (1.4826 × median absolute distance) of the skin points
+  // about these curves: the scanner's noise plus how far the sherd is from a surface of
+  // revolution.
+  Polyline2 aggregate_outer, aggregate_inner;
+  double aggregate_spread_mm = 0.0;
 };
 
 struct WallThickness {

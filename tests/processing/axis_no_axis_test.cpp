@@ -1,6 +1,6 @@
 // Pieces without a usable axis, through the station's method (refined): each gets found = false
-// and a reason of its own, so that the plate says why no profile is drawn. (A hand-made,
-// irregular pot has no test yet: with ±4 mm lobes the refined axis is still reported.)
+// and a reason of its own, so that the plate says why no profile is drawn (a hand-made, irregular
+// pot: axis_hand_made_test.cpp).
 #include <gtest/gtest.h>
 
 #include "processing/axis/axis.h"

@@ -24,14 +24,17 @@ struct WallOfRevolution {
   std::function<Vec2(double)> outer;
   double thickness_mm = 6.0;
   double phi_begin_rad = 0.0, phi_end_rad = M_PI / 3;
-  bool flat_lip = true;               // rim end: flat lip face; otherwise an irregular break
-  double break_amplitude_mm = 10.0;   // irregularity of the broken ends, in arc length
-  bool side_faces = true;             // fracture faces at phi_begin / phi_end
-  bool closed_base = false;           // base end closed at the axis (r(0) = 0): no break there
+  bool flat_lip = true;              // rim end: flat lip face; otherwise an irregular break
+  double break_amplitude_mm = 10.0;  // irregularity of the broken ends, in arc length
+  bool side_faces = true;            // fracture faces at phi_begin / phi_end
+  bool closed_base = false;          // base end closed at the axis (r(0) = 0): no break there
   double spacing_mm = 0.5;
   double noise_mm = 0.05;
   double normal_noise_deg = 1.0;
   unsigned seed = 1;
+  // Relief cut into the outer skin only (grooves, ridges): a radial offset in mm as a function of
+  // the height z, added to the outer skin; the inner skin stays the smooth offset of `outer`.
+  std::function<double(double z)> outer_relief_mm;
 };
 
 // How far (in arc length along the profile) an irregular break lies inside the wall's end, at
@@ -55,8 +58,8 @@ inline Cloud sample_wall(const WallOfRevolution& w) {
   auto emit = [&](const Vec2& rz, const Vec2& n_rz, double phi, const Vec3d& extra_normal) {
     const Vec3d radial(std::cos(phi), std::sin(phi), 0.0);
     const Vec3d p = rz.x() * radial + Vec3d(0, 0, rz.y());
-    Vec3d n = extra_normal.isZero() ? Vec3d(n_rz.x() * radial + Vec3d(0, 0, n_rz.y()))
-                                    : extra_normal;
+    Vec3d n =
+        extra_normal.isZero() ? Vec3d(n_rz.x() * radial + Vec3d(0, 0, n_rz.y())) : extra_normal;
     const double sigma = w.normal_noise_deg * M_PI / 180.0;
     n = (n + sigma * Vec3d(gauss(rng), gauss(rng), gauss(rng))).normalized();
     const Vec3d noisy = p + w.noise_mm * Vec3d(gauss(rng), gauss(rng), gauss(rng));
@@ -67,7 +70,8 @@ inline Cloud sample_wall(const WallOfRevolution& w) {
   constexpr int kTable = 4000;
   std::vector<double> length(kTable + 1, 0.0);
   for (int k = 1; k <= kTable; ++k) {
-    length[k] = length[k - 1] + (w.outer(double(k) / kTable) - w.outer(double(k - 1) / kTable)).norm();
+    length[k] =
+        length[k - 1] + (w.outer(double(k) / kTable) - w.outer(double(k - 1) / kTable)).norm();
   }
   auto s_at_length = [&](double l) {
     const auto it = std::lower_bound(length.begin(), length.end(), l);
@@ -81,6 +85,10 @@ inline Cloud sample_wall(const WallOfRevolution& w) {
     return w.flat_lip ? total : total - break_offset_mm(w.break_amplitude_mm, phi, kHighBreakPhase);
   };
 
+  const auto relieved = [&](double s) {
+    const Vec2 p = w.outer(s);
+    return w.outer_relief_mm ? Vec2(p + Vec2(w.outer_relief_mm(p.y()), 0.0)) : p;
+  };
   const Vec3d none = Vec3d::Zero();
   for (double l = 0.0; l <= total; l += w.spacing_mm) {
     const double s = s_at_length(l);
@@ -92,8 +100,10 @@ inline Cloud sample_wall(const WallOfRevolution& w) {
       const double dphi = w.spacing_mm / std::max(r, w.spacing_mm);
       for (double phi = w.phi_begin_rad; phi <= w.phi_end_rad; phi += dphi) {
         if (l < low_end(phi) || l > high_end(phi)) continue;
-        if (skin == 0) emit(out, n, phi, none);
-        else emit(in, -n, phi, none);
+        if (skin == 0)
+          emit(relieved(s), profile_normal(relieved, s), phi, none);
+        else
+          emit(in, -n, phi, none);
       }
     }
   }
@@ -102,7 +112,8 @@ inline Cloud sample_wall(const WallOfRevolution& w) {
     const double s = s_at_length(l);
     const Vec2 out = w.outer(s), n = profile_normal(w.outer, s);
     const Vec2 tangent(-n.y(), n.x());
-    for (double d = 0.0; d <= w.thickness_mm; d += w.spacing_mm) emit(out - d * n, sign * tangent, phi, none);
+    for (double d = 0.0; d <= w.thickness_mm; d += w.spacing_mm)
+      emit(out - d * n, sign * tangent, phi, none);
   };
   const double mid_r = w.outer(0.5).x();
   for (double phi = w.phi_begin_rad; phi <= w.phi_end_rad; phi += w.spacing_mm / mid_r) {
@@ -160,7 +171,8 @@ inline AxisTruth place(Cloud& cloud, const Pose& pose) {
   return {pose.translation(), pose.linear() * Vec3d::UnitZ()};
 }
 
-inline double distance_point_to_line(const Vec3d& p, const Vec3d& line_point, const Vec3d& line_dir) {
+inline double distance_point_to_line(const Vec3d& p, const Vec3d& line_point,
+                                     const Vec3d& line_dir) {
   return (p - line_point).cross(line_dir.normalized()).norm();
 }
 

@@ -208,6 +208,34 @@ TEST(ProfileAnalyse, BodySherdBrokenAtBothEndsIsNotSureWhichWayUp) {
   EXPECT_NEAR(result.measurements.wall_thickness_mm.mean, 6.0, 0.15);
 }
 
+// Both ends cut level and square across the wall (a collar, a pot stand, or a sherd whose lower
+// end broke cleanly along a join): two ends of one kind, so the rule cannot tell up from down and
+// says so; it takes the wider end as the top (most vessels widen from the base up), whichever way
+// the axis came in and whichever end is the wider.
+TEST(ProfileAnalyse, TwoLevelEndsAreNotSureWhichWayUpAndPutTheWiderEndOnTop) {
+  const double half_angle = 20.0 * M_PI / 180.0;
+  for (const double widening : {1.0, -1.0}) {  // +1: wider at the sherd frame's top (s = 1)
+    WallOfRevolution w;
+    w.outer = [=](double s) {
+      const double t = widening > 0 ? s : 1.0 - s;
+      return Vec2(50.0 + 40.0 * t * std::sin(half_angle), 40.0 * s * std::cos(half_angle));
+    };
+    w.break_amplitude_mm = 0.0;  // the lower end level, like the flat lip at the top
+    w.phi_end_rad = M_PI / 2;
+    w.thickness_mm = 6.0;
+    Cloud cloud = testing::sample_wall(w);
+    const Pose pose = testing::arbitrary_pose();
+    cloud.transform(pose);
+    const Vec3d wider_end = widening * (pose.linear() * Vec3d::UnitZ());
+    for (const double sign : {1.0, -1.0}) {
+      SCOPED_TRACE(::testing::Message() << "widening " << widening << ", axis sign " << sign);
+      const auto result = profile::analyse(cloud, true_axis(pose, sign));
+      EXPECT_FALSE(result.rim_up_certain) << widening << " " << sign;
+      EXPECT_GT(result.axis.direction.dot(wider_end), 0.9999) << widening << " " << sign;
+    }
+  }
+}
+
 TEST(ProfileAnalyse, CompleteCupCapacity) {
   // A cup: flat base (outer underside r ≤ 32 at z = 0), a rounded foot (radius 8), a straight
   // wall at r = 40 up to a flat lip at z = 70; 6 mm thick. Outer profile by arc length.
