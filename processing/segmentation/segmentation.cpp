@@ -52,6 +52,8 @@ void check_params(const Params& p) {
     bad(fmt::format("contact_erosion_mm = {} must be >= 0", p.contact_erosion_mm));
   if (!(p.contact_min_core_mm2 >= 0.0))
     bad(fmt::format("contact_min_core_mm2 = {} must be >= 0", p.contact_min_core_mm2));
+  if (!(p.contact_own_basin_mm2 >= 0.0))
+    bad(fmt::format("contact_own_basin_mm2 = {} must be >= 0", p.contact_own_basin_mm2));
   if (!(p.frame_height_mm >= 0.0))
     bad(fmt::format("frame_height_mm = {} must be >= 0", p.frame_height_mm));
   if (!(p.plane_distance_mm > 0.0))
@@ -310,12 +312,19 @@ void flood_from_cores(const Graph& near, const std::vector<std::uint32_t>& clust
 // (its mean is off the centre by more than a quarter of the radius; a half-disk gives 0.42).
 // A core counts only when it could be a sherd by itself (`min_core_voxels`); one smaller than
 // `min_own_core_voxels` is taken for the far side of a step inside a sherd (see
-// Params::contact_min_core_mm2) and its part joins a neighbour; with fewer than two
-// the cluster stays whole.
+// Params::contact_min_core_mm2) and its part joins a neighbour — unless that part covers
+// `min_own_basin_voxels` (Params::contact_own_basin_mm2): then it is a narrow sherd; with fewer
+// than two cores the cluster stays whole.
+struct CoreSizes {
+  std::size_t min_core_voxels;       // smaller cores are ignored
+  std::size_t min_own_core_voxels;   // smaller cores' parts join a neighbour …
+  std::size_t min_own_basin_voxels;  // … unless the part is at least this large
+};
+
 std::vector<std::vector<std::uint32_t>> split_at_contacts(
     const Graph& near, const std::vector<Vec3f>& centres, const std::vector<std::uint32_t>& cluster,
-    double radius, double erosion, std::size_t min_core_voxels, std::size_t min_own_core_voxels,
-    std::vector<float>& distance, std::vector<int>& tag) {
+    double radius, double erosion, const CoreSizes& sizes, std::vector<float>& distance,
+    std::vector<int>& tag) {
   std::vector<std::pair<std::uint32_t, int>> boundary;
   for (auto v : cluster) {
     Vec3f mean = Vec3f::Zero();
@@ -331,7 +340,7 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
   std::vector<std::pair<std::uint32_t, int>> seeds;
   std::vector<std::size_t> core_size;
   for (const auto& c : components(near, cluster, core)) {
-    if (c.size() < min_core_voxels) continue;
+    if (c.size() < sizes.min_core_voxels) continue;
     for (auto v : c) seeds.emplace_back(v, static_cast<int>(core_size.size()));
     core_size.push_back(c.size());
   }
@@ -340,7 +349,8 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
   if (cores < 2) return {cluster};
   flood_from_cores(near, cluster, seeds, distance, tag);
   // A small core's basin joins the neighbouring basin it has most neighbour pairs with — for the
-  // far side of a step, mostly the only one: the rest of its sherd.
+  // far side of a step, mostly the only one: the rest of its sherd. A large basin around a small
+  // core is a sherd too narrow for the erosion to leave much of it, touching another.
   std::vector<std::vector<std::size_t>> border(cores, std::vector<std::size_t>(cores, 0));
   for (auto v : cluster) {
     for (auto n : near[v]) border[tag[v]][tag[n]] += tag[n] != tag[v];
@@ -351,8 +361,11 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
     while (group[c] != c) c = group[c] = group[group[c]];
     return c;
   };
+  std::vector<std::size_t> basin_size(cores, 0);
+  for (auto v : cluster) ++basin_size[tag[v]];
   for (int c = 0; c < cores; ++c) {
-    if (core_size[c] >= min_own_core_voxels) continue;
+    if (core_size[c] >= sizes.min_own_core_voxels || basin_size[c] >= sizes.min_own_basin_voxels)
+      continue;
     const auto longest = std::max_element(border[c].begin(), border[c].end()) - border[c].begin();
     if (border[c][longest] > 0) group[root(c)] = root(static_cast<int>(longest));
   }
@@ -385,20 +398,22 @@ std::vector<std::vector<std::uint32_t>> clusters(const std::vector<Vec3f>& point
   const double leaf = tolerance / kVoxelsPerTolerance;
   // A core must be as large as the smallest sherd's eroded footprint could be.
   const double core_side = std::max(params.min_extent_mm - 2.0 * params.contact_erosion_mm, leaf);
-  const auto min_core_voxels =
+  CoreSizes sizes;
+  sizes.min_core_voxels =
       static_cast<std::size_t>(std::max(4.0, 1.5 * core_side * core_side / (leaf * leaf)));
-  const auto min_own_core_voxels = std::max(
-      min_core_voxels, static_cast<std::size_t>(params.contact_min_core_mm2 / (leaf * leaf)));
+  sizes.min_own_core_voxels = std::max(
+      sizes.min_core_voxels, static_cast<std::size_t>(params.contact_min_core_mm2 / (leaf * leaf)));
+  sizes.min_own_basin_voxels =
+      static_cast<std::size_t>(params.contact_own_basin_mm2 / (leaf * leaf));
   std::vector<float> distance(voxels.centres.size());
   std::vector<int> tag(voxels.centres.size());
 
   std::vector<std::vector<std::uint32_t>> found;
   for (const auto& cluster : components(near, all, {})) {
-    const auto parts =
-        params.contact_erosion_mm > 0.0
-            ? split_at_contacts(near, voxels.centres, cluster, tolerance, params.contact_erosion_mm,
-                                min_core_voxels, min_own_core_voxels, distance, tag)
-            : std::vector<std::vector<std::uint32_t>>{cluster};
+    const auto parts = params.contact_erosion_mm > 0.0
+                           ? split_at_contacts(near, voxels.centres, cluster, tolerance,
+                                               params.contact_erosion_mm, sizes, distance, tag)
+                           : std::vector<std::vector<std::uint32_t>>{cluster};
     for (const auto& part : parts) {
       std::vector<std::uint32_t> members;
       for (auto v : part) {
