@@ -31,14 +31,14 @@ struct Params {
   // (the bound ≈ 6 mm²) 84/85/83 %; cores under 30 mm² dropped 90/90/87 %, joined 91/91/87 %;
   // under 80 mm² dropped 79 % (seed 1: small sherds touching others lost, merges 5 → 20).
   double contact_min_core_mm2 = 30.0;
-  // … except when everything nearer to that small core (along the surface) than to any other —
-  // its part after the watershed — covers at least this much: then it is a narrow sherd (a rim
-  // strip, a thin wall piece) that the erosion left little of, touching another, and stays a
-  // sherd of its own. The far side of a step is a small part of its sherd. Measured on
-  // bench_segmentation (100 trays, seeds 1 / 2 / 1001), exact counts 91 / 91 / 87 % without this,
-  // 92 / 92 / 90 % with 400 mm² (merged sherds 8 / 8 / 6 → 5 / 5 / 2). Parts that rightly joined
-  // covered up to 390 mm²; narrow sherds wrongly joined, from 440 mm².
-  double contact_own_basin_mm2 = 400.0;
+  // … except when the part the watershed gives that small core covers at least this much: then
+  // it is a narrow sherd (a rim strip, a thin wall piece) that the erosion left little of,
+  // touching another, and stays a sherd of its own; the far side of a step is a small part of its
+  // sherd. Measured on bench_segmentation (100 trays, seeds 1 / 2 / 1001), exact counts
+  // 91 / 91 / 87 % without this, 92 / 92 / 91 % with 450 mm² (merged sherds 8 / 8 / 6 →
+  // 5 / 5 / 2); 300 mm² 86 / 86 / 87 %, 400 and 500 mm² as 450 within one tray. Parts rightly
+  // joined covered up to 390 mm², narrow sherds wrongly joined from 440 mm².
+  double contact_own_basin_mm2 = 450.0;
   int min_points = 400;
   double min_extent_mm = 12.0;
   double max_extent_mm = 450.0;
