@@ -103,6 +103,8 @@ struct EdgeResult {
   bool used_colour = false;
   double correction_deg = 0.0;  // the source's correction relative to the target, from the prior
   double correction_mm = 0.0;   // (at the source's centroid)
+  // The pair's result: source's scanner frame → target's scanner frame.
+  Pose relative = Pose::Identity();
   std::vector<DegenerateDirection> degenerate;
 };
 

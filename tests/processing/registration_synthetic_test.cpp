@@ -130,9 +130,11 @@ using SceneHit = std::optional<Hit> (*)(const Vec3d&, const Vec3d&);
 using SurfaceColour = Rgb8 (*)(const Vec3d&);
 Rgb8 plain_clay(const Vec3d&) { return Rgb8{180, 120, 90}; }
 
-// One view seen from `true_pose` (scanner → world), with 0.05 mm depth noise.
+// One view seen from `true_pose` (scanner → world), with 0.05 mm depth noise. `lit_by_scanner`:
+// the colour is shaded by a light at the scanner (cosine of the incidence, as a projector beside
+// the camera lights the clay), so every view darkens towards the pot's silhouette.
 OrganisedView capture(const Pose& true_pose, unsigned seed, SceneHit hit_surface = hit_scene,
-                      SurfaceColour colour_at = plain_clay) {
+                      SurfaceColour colour_at = plain_clay, bool lit_by_scanner = false) {
   constexpr int kWidth = 320, kHeight = 240;
   constexpr double kFocal = 600;
   OrganisedView view;
@@ -143,7 +145,7 @@ OrganisedView capture(const Pose& true_pose, unsigned seed, SceneHit hit_surface
   view.colours.assign(view.cells(), Rgb8{});
   view.valid.assign(view.cells(), 0);
   std::mt19937 rng(seed);
-  std::normal_distribution<double> noise(0.0, 0.05);
+  std::normal_distribution<double> noise(0.0, 0.05), camera_noise(0.0, 1.5);
   const Pose world_to_scanner = true_pose.inverse();
   for (int v = 0; v < kHeight; ++v) {
     for (int u = 0; u < kWidth; ++u) {
@@ -154,7 +156,16 @@ OrganisedView capture(const Pose& true_pose, unsigned seed, SceneHit hit_surface
       const std::size_t c = static_cast<std::size_t>(v) * kWidth + u;
       view.points[c] = ((hit->t + noise(rng)) * ray).cast<float>();
       view.normals[c] = (world_to_scanner.linear() * hit->normal).cast<float>();
-      view.colours[c] = colour_at(true_pose.translation() + hit->t * true_pose.linear() * ray);
+      const Vec3d world_ray = true_pose.linear() * ray;
+      Rgb8 colour = colour_at(true_pose.translation() + hit->t * world_ray);
+      if (lit_by_scanner) {
+        const double shade = std::abs(world_ray.dot(hit->normal));
+        for (auto* channel : {&colour.r, &colour.g, &colour.b}) {
+          *channel = static_cast<std::uint8_t>(
+              std::clamp(std::lround(*channel * shade + camera_noise(rng)), 0L, 255L));
+        }
+      }
+      view.colours[c] = colour;
       view.valid[c] = 1;
     }
   }
@@ -438,14 +449,17 @@ TEST_F(SymmetricPot, KeepsThePriorAboutTheAxisAndCorrectsTheRest) {
   }
 }
 
-// Fired clay mottled over millimetres, fixed to the pot (the world frame is the plate's).
-Rgb8 mottled_clay(const Vec3d& p) {
-  const double k = 1.0 + 0.25 * std::sin(2 * std::numbers::pi * p.x() / 7.0) *
+// Fired clay of colour `base`, mottled by ±`amplitude` over millimetres, fixed to the pot (the
+// world frame is the plate's).
+Rgb8 mottled(const Vec3d& p, double amplitude, const Vec3d& base) {
+  const double k = 1.0 + amplitude * std::sin(2 * std::numbers::pi * p.x() / 7.0) *
                              std::sin(2 * std::numbers::pi * p.y() / 5.0) *
                              std::cos(2 * std::numbers::pi * p.z() / 6.0);
-  return Rgb8{static_cast<std::uint8_t>(160 * k), static_cast<std::uint8_t>(110 * k),
-              static_cast<std::uint8_t>(80 * k)};
+  return Rgb8{static_cast<std::uint8_t>(base.x() * k), static_cast<std::uint8_t>(base.y() * k),
+              static_cast<std::uint8_t>(base.z() * k)};
 }
+Rgb8 mottled_clay(const Vec3d& p) { return mottled(p, 0.25, Vec3d(160, 110, 80)); }
+Rgb8 dark_mottled_clay(const Vec3d& p) { return mottled(p, 0.1, Vec3d(70, 50, 40)); }
 
 TEST_F(SymmetricPot, ItsClayTextureFixesWhatItsShapeCannot) {
   std::vector<OrganisedView> textured;
@@ -461,6 +475,28 @@ TEST_F(SymmetricPot, ItsClayTextureFixesWhatItsShapeCannot) {
     SCOPED_TRACE(::testing::Message() << "view " << i);
     const Split e = split_error(relative_to_view0(result, truths_, i), truths_[i]);
     EXPECT_LT(std::abs(e.twist_deg), 0.05);  // the prior was 0.5° off about the axis
+    EXPECT_LT(e.rest.deg, 0.03);
+    EXPECT_LT(e.rest.mm, 0.05);
+  }
+}
+
+// A dark, faintly mottled pot under the scanner's own light, with the camera's noise: the shading
+// moves with the scanner, not with the clay, and near the silhouette, where the light grazes, it
+// changes fastest and the clay is darkest and noisiest. With those rows weighted as evenly as the
+// bright ones, one view ended 0.148° off about the axis (the others within 0.05°); weighted by
+// their brightness, the worst is 0.088°. The bound is the benchmark's (95th percentile ≤ 0.1°).
+TEST_F(SymmetricPot, ADarkPotsTextureFixesItUnderTheScannersOwnLight) {
+  std::vector<OrganisedView> shaded;
+  for (int i = 0; i < kViews; ++i)
+    shaded.push_back(capture(truths_[i], 200 + i, hit_frustum, dark_mottled_clay, true));
+  Params with_colour;
+  with_colour.use_colour = true;
+  with_colour.voxel_mm = 0.5;
+  const Result result = register_views(perturbed_inputs(shaded), kUncertainty, with_colour);
+  for (int i = 1; i < kViews; ++i) {
+    SCOPED_TRACE(::testing::Message() << "view " << i);
+    const Split e = split_error(relative_to_view0(result, truths_, i), truths_[i]);
+    EXPECT_LT(std::abs(e.twist_deg), 0.1);  // the prior was 0.5° off about the axis
     EXPECT_LT(e.rest.deg, 0.03);
     EXPECT_LT(e.rest.mm, 0.05);
   }
