@@ -39,6 +39,9 @@ constexpr float kTrimmedOverlapRatio = 0.9f;
 const double kMinNormalCosine = std::cos(std::numbers::pi / 4);
 // Neighbours for normals where the scanner gave none.
 constexpr int kNormalNeighbours = 16;
+// The second round refines a pair again only where the first solve put it this far (at its
+// centroid, or its rotation at its RMS radius) from its own first result: the scanner's noise.
+constexpr double kRefineAgainMm = 0.05;
 // Fixed so that registering the same views twice gives the same poses.
 constexpr unsigned kSampleSeed = 20240601;
 
@@ -1051,9 +1054,9 @@ Result register_views(const std::vector<ViewInput>& views,
     candidates.push_back(c);
   }
 
-  // Pairwise refinement, then the global solve; twice: the second round refines every pair again
-  // from the poses the first solve found (closer than the priors, so pairs that went astray from
-  // the priors can converge) and solves again.
+  // Pairwise refinement, then the global solve; twice: the second round refines every pair the
+  // first solve moved off its own result again from the poses that solve found (closer than the
+  // priors, so pairs that went astray from the priors can converge) and solves again.
   std::vector<int> candidate_edges(views.size(), 0);
   std::erase_if(candidates,
                 [&](const Candidate& c) { return c.overlap < params.min_edge_overlap; });
@@ -1188,6 +1191,7 @@ Result register_views(const std::vector<ViewInput>& views,
     solve_consistent();
     const std::vector<char> placed = active;
     const std::vector<Pose> first = poses;
+    const std::vector<GraphEdge> first_graph = graph;
     graph.clear();
     std::fill(implausible.begin(), implausible.end(), 0);
     for (std::size_t k = 0; k < candidates.size(); ++k) {
@@ -1202,6 +1206,22 @@ Result register_views(const std::vector<ViewInput>& views,
       // prior frame; fine distances only.
       const Eigen::Isometry3d initial = views[c.target].prior * first[c.target].inverse() *
                                         first[c.source] * views[c.source].prior.inverse();
+      // A pair the first solve left where its own ICP put it (within the scanner's noise) would
+      // only converge back there: its first result stands. Measured (bench_registration): bunny
+      // 1.00 → 0.82 s per view for the same errors; frames 0.0029° → 0.0035° median.
+      const auto first_edge = std::find_if(first_graph.begin(), first_graph.end(),
+                                           [&](const GraphEdge& e) { return e.edge_index == k; });
+      if (first_edge != first_graph.end()) {
+        const Eigen::Isometry3d gap =
+            first_edge->measured.inverse() * first[c.target].inverse() * first[c.source];
+        const Vec3d centre = views[c.source].prior.inverse() * data[c.source].centroid;
+        const double turned_mm =
+            Eigen::AngleAxisd(gap.linear()).angle() * data[c.source].rms_radius_mm;
+        if ((gap * centre - centre).norm() < kRefineAgainMm && turned_mm < kRefineAgainMm) {
+          graph.push_back(*first_edge);
+          continue;
+        }
+      }
       refine_edge(k, initial, params.max_correspondence_mm);
     }
     solve_consistent();
