@@ -42,12 +42,6 @@ constexpr int kNormalNeighbours = 16;
 // The second round refines a pair again only where the first solve put it this far (at its
 // centroid, or its rotation at its RMS radius) from its own first result: the scanner's noise.
 constexpr double kRefineAgainMm = 0.05;
-// The views' k-d trees search approximately: a neighbour found may be up to 1 + this times as far
-// as the nearest (FLANN's eps). A correspondence's plane and a neighbourhood's mean barely change;
-// the search, most of ICP's time, gets a third faster. Measured (bench_registration --seeds 3, ours
-// alone, exact → 0.3): bunny 0.98 → 0.65 s per view, 0.136° → 0.134°; vessels 1.47 → 1.27 s,
-// 0.015° → 0.012° (p95 0.073° → 0.063°); frames 0.98 → 0.93 s, 0.0035° → 0.0034°.
-constexpr float kSearchEpsilon = 0.3f;
 // Fixed so that registering the same views twice gives the same poses.
 constexpr unsigned kSampleSeed = 20240601;
 
@@ -468,7 +462,6 @@ ViewData prepare_view(const ViewInput& input, const PriorUncertainty& prior, con
   const CloudT& cloud = *data.at_prior;
   if (cloud.empty()) return data;
   data.tree = std::make_shared<pcl::search::KdTree<PointT>>();
-  data.tree->setEpsilon(kSearchEpsilon);
   data.tree->setInputCloud(data.at_prior);
   if (params.use_colour && has_colour(*input.view)) {
     data.contrast =
