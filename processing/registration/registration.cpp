@@ -44,6 +44,9 @@ constexpr int kNormalNeighbours = 16;
 constexpr double kRefineAgainMm = 0.05;
 // Fixed so that registering the same views twice gives the same poses.
 constexpr unsigned kSampleSeed = 20240601;
+// Radius searches need no ordering (a nearest-within-radius search with max_nn = 1 keeps the best
+// one either way); PCL's default sorts every result list by distance.
+constexpr bool kUnsortedResults = false;
 
 double to_deg(double rad) { return rad * 180.0 / std::numbers::pi; }
 
@@ -180,7 +183,12 @@ std::vector<Pair> nearest_pairs(const CloudT& source,
   std::vector<float> distance_sq(1);
   for (std::size_t i = 0; i < source.size(); ++i) {
     const auto& p = source[i];
-    if (target_tree.nearestKSearch(p, 1, index, distance_sq) < 1 || distance_sq[0] > max_sq) {
+    // The nearest point within the distance, exactly: bounded by it, the tree prunes from the
+    // start, where an unbounded nearest search for a point off the target's surface (outside the
+    // overlap, or in the coarse stages) first descends to some far leaf and widens from there.
+    // Measured on the bunny: 0.94 → 0.52 s per view, poses unchanged.
+    if (target_tree.radiusSearch(p, max_distance_mm, index, distance_sq, 1) < 1 ||
+        distance_sq[0] > max_sq) {
       continue;
     }
     if (p.getNormalVector3fMap().dot(target[index[0]].getNormalVector3fMap()) < kMinNormalCosine) {
@@ -382,60 +390,94 @@ bool has_colour(const OrganisedView& view) {
   return false;
 }
 
-// Per point: intensity / local mean − 1 (NaN where too few neighbours or too dark to tell), and
-// that local mean in `brightness`.
-std::vector<float> local_contrast(const CloudT& cloud, const pcl::search::KdTree<PointT>& tree,
-                                  double radius_mm, std::vector<float>& brightness) {
-  std::vector<float> contrast(cloud.size(), std::nanf(""));
-  brightness.assign(cloud.size(), 0.0f);
-  std::vector<int> index;
-  std::vector<float> distance_sq;
-  for (std::size_t i = 0; i < cloud.size(); ++i) {
-    if (tree.radiusSearch(cloud[i], radius_mm, index, distance_sq) <
-        static_cast<int>(kMinColourNeighbours)) {
-      continue;
-    }
-    double sum = 0.0;
-    for (int k : index) sum += intensity(cloud[k]);
-    const double mean = sum / static_cast<double>(index.size());
-    brightness[i] = static_cast<float>(mean);
-    if (mean > 0.02) contrast[i] = static_cast<float>(intensity(cloud[i]) / mean - 1.0);
+// Per point of a view: its contrast (intensity / local mean − 1; NaN where too few neighbours or
+// too dark to tell), that local mean (brightness), and the contrast's gradient in its tangent plane
+// (least squares over the neighbours projected onto that plane; zero where it cannot be fitted).
+// Each is computed where the photometric term first asks for it: the source's sample and the
+// target points it pairs with, and their neighbourhoods — about a quarter of a simulated vessel's
+// view. Computed for every point up front, the radius searches took half of its registration time.
+class ColourField {
+ public:
+  ColourField() = default;  // a view without colour
+  ColourField(CloudT::ConstPtr cloud, std::shared_ptr<const pcl::search::KdTree<PointT>> tree,
+              double voxel_mm)
+      : cloud_(std::move(cloud)),
+        tree_(std::move(tree)),
+        contrast_radius_mm_(kContrastRadiusVoxels * voxel_mm),
+        gradient_radius_mm_(kGradientRadiusVoxels * voxel_mm),
+        point_(cloud_->size()) {}
+
+  bool empty() const { return point_.empty(); }
+  float contrast(std::size_t i) const { return with_contrast(i).contrast; }
+  float brightness(std::size_t i) const { return with_contrast(i).brightness; }
+  const Eigen::Vector3f& gradient(std::size_t i) const;
+
+ private:
+  struct PointColour {
+    bool contrast_known = false, gradient_known = false;
+    float contrast = std::numeric_limits<float>::quiet_NaN();
+    float brightness = 0.0f;
+    Eigen::Vector3f gradient = Eigen::Vector3f::Zero();
+  };
+  const PointColour& with_contrast(std::size_t i) const;
+
+  CloudT::ConstPtr cloud_;
+  std::shared_ptr<const pcl::search::KdTree<PointT>> tree_;
+  double contrast_radius_mm_ = 0.0, gradient_radius_mm_ = 0.0;
+  // Filled on first request; a view's field serves one registration, on one thread.
+  mutable std::vector<PointColour> point_;
+  mutable std::vector<int> index_;
+  mutable std::vector<float> distance_sq_;
+};
+
+const ColourField::PointColour& ColourField::with_contrast(std::size_t i) const {
+  PointColour& out = point_[i];
+  if (out.contrast_known) return out;
+  out.contrast_known = true;
+  const CloudT& cloud = *cloud_;
+  if (tree_->radiusSearch(cloud[i], contrast_radius_mm_, index_, distance_sq_) <
+      static_cast<int>(kMinColourNeighbours)) {
+    return out;
   }
-  return contrast;
+  double sum = 0.0;
+  for (int k : index_) sum += intensity(cloud[k]);
+  const double mean = sum / static_cast<double>(index_.size());
+  out.brightness = static_cast<float>(mean);
+  if (mean > 0.02) out.contrast = static_cast<float>(intensity(cloud[i]) / mean - 1.0);
+  return out;
 }
 
-// Per point: the gradient of the contrast in its tangent plane (least squares over the neighbours
-// projected onto that plane); zero where it cannot be fitted.
-std::vector<Eigen::Vector3f> contrast_gradients(const CloudT& cloud,
-                                                const std::vector<float>& contrast,
-                                                const pcl::search::KdTree<PointT>& tree,
-                                                double radius_mm) {
-  std::vector<Eigen::Vector3f> gradient(cloud.size(), Eigen::Vector3f::Zero());
-  std::vector<int> index;
-  std::vector<float> distance_sq;
-  for (std::size_t i = 0; i < cloud.size(); ++i) {
-    if (!std::isfinite(contrast[i])) continue;
-    if (tree.radiusSearch(cloud[i], radius_mm, index, distance_sq) <
-        static_cast<int>(kMinColourNeighbours)) {
-      continue;
-    }
-    const Eigen::Vector3f n = cloud[i].getNormalVector3fMap();
-    const Eigen::Vector3f t1 = n.unitOrthogonal(), t2 = n.cross(t1);
-    Eigen::Matrix2d a = Eigen::Matrix2d::Zero();
-    Eigen::Vector2d b = Eigen::Vector2d::Zero();
-    for (int k : index) {
-      if (!std::isfinite(contrast[k]) || k == static_cast<int>(i)) continue;
-      const Eigen::Vector3f d = cloud[k].getVector3fMap() - cloud[i].getVector3fMap();
-      const Eigen::Vector2d u(t1.dot(d), t2.dot(d));
-      a += u * u.transpose();
-      b += u * static_cast<double>(contrast[k] - contrast[i]);
-    }
-    const Eigen::LDLT<Eigen::Matrix2d> solve(a);
-    if (solve.info() != Eigen::Success || a.determinant() < 1e-6 * a.trace() * a.trace()) continue;
-    const Eigen::Vector2d g = solve.solve(b);
-    gradient[i] = static_cast<float>(g.x()) * t1 + static_cast<float>(g.y()) * t2;
+const Eigen::Vector3f& ColourField::gradient(std::size_t i) const {
+  PointColour& out = point_[i];
+  if (out.gradient_known) return out.gradient;
+  out.gradient_known = true;
+  const float centre = contrast(i);
+  const CloudT& cloud = *cloud_;
+  if (!std::isfinite(centre) ||
+      tree_->radiusSearch(cloud[i], gradient_radius_mm_, index_, distance_sq_) <
+          static_cast<int>(kMinColourNeighbours)) {
+    return out.gradient;
   }
-  return gradient;
+  const std::vector<int> neighbours = index_;  // contrast() below reuses the search buffers
+  const Eigen::Vector3f n = cloud[i].getNormalVector3fMap();
+  const Eigen::Vector3f t1 = n.unitOrthogonal(), t2 = n.cross(t1);
+  Eigen::Matrix2d a = Eigen::Matrix2d::Zero();
+  Eigen::Vector2d b = Eigen::Vector2d::Zero();
+  for (int k : neighbours) {
+    if (k == static_cast<int>(i)) continue;
+    const float other = contrast(static_cast<std::size_t>(k));
+    if (!std::isfinite(other)) continue;
+    const Eigen::Vector3f d = cloud[k].getVector3fMap() - cloud[i].getVector3fMap();
+    const Eigen::Vector2d u(t1.dot(d), t2.dot(d));
+    a += u * u.transpose();
+    b += u * static_cast<double>(other - centre);
+  }
+  const Eigen::LDLT<Eigen::Matrix2d> solve(a);
+  if (solve.info() != Eigen::Success || a.determinant() < 1e-6 * a.trace() * a.trace())
+    return out.gradient;
+  const Eigen::Vector2d g = solve.solve(b);
+  out.gradient = static_cast<float>(g.x()) * t1 + static_cast<float>(g.y()) * t2;
+  return out.gradient;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -444,16 +486,14 @@ std::vector<Eigen::Vector3f> contrast_gradients(const CloudT& cloud,
 struct ViewData {
   CloudT::Ptr at_prior;  // voxel points in the world frame at the view's prior
   std::shared_ptr<pcl::search::KdTree<PointT>> tree;  // over at_prior
-  std::vector<float> contrast;                        // per point of at_prior; empty: no colour
-  std::vector<float> brightness;                      // local mean intensity, per point
-  std::vector<Eigen::Vector3f> gradient;              // of the contrast, per point of at_prior
+  ColourField colour;                                 // per point of at_prior; empty: no colour
   std::vector<int> sample;  // the points ICP iterates on (a fixed random subset of at_prior)
   Vec3d centroid = Vec3d::Zero();
   double rms_radius_mm = 0.0;  // about the centroid: scales rotations to millimetres
   // How far the prior's uncertainty may move a point of this view (1 σ, mm).
   double prior_displacement_sd_mm = 0.0;
 
-  bool coloured() const { return !contrast.empty(); }
+  bool coloured() const { return !colour.empty(); }
 };
 
 ViewData prepare_view(const ViewInput& input, const PriorUncertainty& prior, const Params& params) {
@@ -461,13 +501,10 @@ ViewData prepare_view(const ViewInput& input, const PriorUncertainty& prior, con
   data.at_prior = transformed(*view_cloud(*input.view, params.voxel_mm), input.prior);
   const CloudT& cloud = *data.at_prior;
   if (cloud.empty()) return data;
-  data.tree = std::make_shared<pcl::search::KdTree<PointT>>();
+  data.tree = std::make_shared<pcl::search::KdTree<PointT>>(kUnsortedResults);
   data.tree->setInputCloud(data.at_prior);
   if (params.use_colour && has_colour(*input.view)) {
-    data.contrast =
-        local_contrast(cloud, *data.tree, kContrastRadiusVoxels * params.voxel_mm, data.brightness);
-    data.gradient = contrast_gradients(cloud, data.contrast, *data.tree,
-                                       kGradientRadiusVoxels * params.voxel_mm);
+    data.colour = ColourField(data.at_prior, data.tree, params.voxel_mm);
   }
   data.sample.resize(cloud.size());
   std::iota(data.sample.begin(), data.sample.end(), 0);
@@ -621,13 +658,14 @@ PairRefinement refine_pair(const ViewData& target, const ViewData& source,
           for (std::size_t k = 0; k < pairs.size(); ++k) {
             const int q = pairs[k].target;
             const auto s_index = static_cast<std::size_t>(source.sample[pairs[k].source]);
-            const float cs = source.contrast[s_index];
-            if (!std::isfinite(cs) || !std::isfinite(target.contrast[q])) continue;
+            const float cs = source.colour.contrast(s_index);
+            if (!std::isfinite(cs) || !std::isfinite(target.colour.contrast(q))) continue;
             const Eigen::Vector3f offset =
                 (*moved)[pairs[k].source].getVector3fMap() - target_cloud[q].getVector3fMap();
-            brightness[k] = std::min(target.brightness[q], source.brightness[s_index]);
-            photometric[k] =
-                brightness[k] * (target.contrast[q] + target.gradient[q].dot(offset) - cs);
+            brightness[k] =
+                std::min(target.colour.brightness(q), source.colour.brightness(s_index));
+            photometric[k] = brightness[k] * (target.colour.contrast(q) +
+                                              target.colour.gradient(q).dot(offset) - cs);
           }
         }
         const double geometric_weight =
@@ -652,7 +690,7 @@ PairRefinement refine_pair(const ViewData& target, const ViewData& source,
             const double sds = std::abs(photometric[k]) / photometric_sd;
             const double huber = sds > kHuberThreshold ? kHuberThreshold / sds : 1.0;
             photometry.add((p - c) / s,
-                           brightness[k] * target.gradient[pairs[k].target].cast<double>(),
+                           brightness[k] * target.colour.gradient(pairs[k].target).cast<double>(),
                            photometric[k], huber * photometric_weight);
           }
         }
