@@ -334,32 +334,32 @@ Eigen::Vector2f hue(const Vec3f& rgb) {
   return Eigen::Vector2f(rgb.y(), rgb.z()) / std::max(rgb.x(), 1.0f);
 }
 
-// Pairs (a, b) of the `parts` parts of `cluster` (by `tag`) that are one sherd's levels, judged
-// by their border and by the colours of their cores (`core_rgb`, sums).
+// Pairs (a, b) of parts (by `tag`; core_rgb.size() of them) that are one sherd's levels, judged
+// by their border among the voxels `among` and by the colours of their cores (`core_rgb`, sums).
 std::vector<std::pair<int, int>> levels_of_one_sherd(
-    const Graph& near, const std::vector<Vec3f>& centres, const std::vector<std::uint32_t>& cluster,
+    const Graph& near, const std::vector<Vec3f>& centres, const std::vector<std::uint32_t>& among,
     const std::vector<int>& tag, const std::vector<Vec3f>& core_rgb, double radius) {
   const int parts = static_cast<int>(core_rgb.size());
   std::vector<std::vector<std::size_t>> contacts(parts, std::vector<std::size_t>(parts, 0));
-  for (auto v : cluster) {
+  for (auto v : among) {
     for (auto n : near[v]) contacts[tag[v]][tag[n]] += tag[n] > tag[v];
   }
-  // Step pairs: neighbours in the top view (the cluster flattened onto the plate) that are not
+  // Step pairs: neighbours in the top view (flattened onto the plate) that are not
   // neighbours in 3-D, with their difference in height.
   auto flat = std::make_shared<pcl::PointCloud<pcl::PointXYZ>>();
-  flat->reserve(cluster.size());
-  for (auto v : cluster) flat->push_back({centres[v].x(), centres[v].y(), 0.0f});
+  flat->reserve(among.size());
+  for (auto v : among) flat->push_back({centres[v].x(), centres[v].y(), 0.0f});
   pcl::search::KdTree<pcl::PointXYZ> tree(false);
   tree.setInputCloud(flat);
   pcl::Indices found;
   std::vector<float> distances;
   const float radius2 = static_cast<float>(radius * radius);
   std::vector<std::vector<std::vector<float>>> steps(parts, std::vector<std::vector<float>>(parts));
-  for (std::size_t k = 0; k < cluster.size(); ++k) {
-    const auto v = cluster[k];
+  for (std::size_t k = 0; k < among.size(); ++k) {
+    const auto v = among[k];
     tree.radiusSearch((*flat)[k], radius, found, distances);
     for (auto f : found) {
-      const auto n = cluster[f];
+      const auto n = among[f];
       if (tag[n] <= tag[v] || (centres[n] - centres[v]).squaredNorm() <= radius2) continue;
       steps[tag[v]][tag[n]].push_back(std::abs(centres[n].z() - centres[v].z()));
     }
@@ -451,13 +451,18 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
     const auto longest = std::max_element(border[c].begin(), border[c].end()) - border[c].begin();
     if (border[c][longest] > 0) group[root(c)] = root(static_cast<int>(longest));
   }
-  if (!voxel_rgb.empty()) {
+  // Levels are looked for among the parts of sherd-sized cores only (the others joined above).
+  std::vector<std::uint8_t> sherd_sized(cores);
+  for (int c = 0; c < cores; ++c) sherd_sized[c] = core_size[c] >= sizes.min_own_core_voxels;
+  if (!voxel_rgb.empty() && std::count(sherd_sized.begin(), sherd_sized.end(), 1) >= 2) {
     std::vector<Vec3f> core_rgb(cores, Vec3f::Zero());
     for (auto [v, c] : seeds) core_rgb[c] += voxel_rgb[v];
-    for (auto [a, b] : levels_of_one_sherd(near, centres, cluster, tag, core_rgb, radius)) {
-      if (core_size[a] >= sizes.min_own_core_voxels && core_size[b] >= sizes.min_own_core_voxels)
-        group[root(a)] = root(b);
+    std::vector<std::uint32_t> judged;
+    for (auto v : cluster) {
+      if (sherd_sized[tag[v]]) judged.push_back(v);
     }
+    for (auto [a, b] : levels_of_one_sherd(near, centres, judged, tag, core_rgb, radius))
+      group[root(a)] = root(b);
   }
   std::vector<int> part_of(cores, -1);
   std::vector<std::vector<std::uint32_t>> parts;
