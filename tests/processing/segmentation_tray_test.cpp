@@ -138,6 +138,92 @@ TEST(ContactSplitting, AStepInsideASherdKeepsItWholeATouchingSherdIsCutOff) {
   EXPECT_EQ(found, (std::set<int>{1, 2}));
 }
 
+// A tray of bench_segmentation (seed, sherd count and background as it lays them, on either
+// background) in which one sherd lies with a step inside it whose two levels the erosion leaves
+// a sherd-sized core each (truth sherd 1 of tray 64, found as two sherds before the levels were
+// joined by their step and colour).
+class SteppedSherdTray : public ::testing::TestWithParam<std::uint64_t> {};
+
+TEST_P(SteppedSherdTray, BothLevelsOfTheSherdAreOneSherd) {
+  for (auto background : {sim::Background::Black, sim::Background::White}) {
+    sim::TraySpec spec;
+    spec.seed = GetParam();
+    spec.sherds = 1 + static_cast<int>(spec.seed * 7 % sim::kMaxTraySherds);
+    spec.background = background;
+    const sim::Tray tray = sim::make_tray(spec);
+    expect_each_sherd_found_once(tray, seg::segment(tray.cloud, tray_params(background)), 0.95,
+                                 0.9);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(BenchTrays, SteppedSherdTray, ::testing::Values(64u));
+
+// A 80 × 50 mm patch on a black plate seen from above every 0.5 mm, in two levels: x < 0 at
+// `upper_z(y)`, x ≥ 0 at 5 mm, joined only by a 2 mm wide ramp at y = 0 (the step's vertical wall
+// is never sampled). Each level is 40 × 50 mm, so the erosion leaves each a large core. Returns
+// the points and the truth (0 plate, 1 the x < 0 level, 2 the x ≥ 0 level).
+struct TwoLevels {
+  sherd::Mesh cloud;
+  std::vector<int> truth;
+};
+
+template <typename UpperZ>
+TwoLevels two_levels(UpperZ upper_z, sherd::Rgb8 upper_colour) {
+  TwoLevels scene;
+  for (int j = -80; j <= 80; ++j) {
+    for (int i = -120; i <= 120; ++i) {
+      const float x = 0.5f * i, y = 0.5f * j;
+      float z = 0.0f;
+      int label = 0;
+      if (std::abs(x) <= 40 && std::abs(y) <= 25) {
+        label = x < 0 ? 1 : 2;
+        z = x < 0 ? upper_z(y) : 5.0f;
+        if (x >= 0 && x < 6 && std::abs(y) <= 1) z = 5.0f + (upper_z(y) - 5.0f) * (6 - x) / 6;
+      }
+      scene.cloud.vertices.points.emplace_back(x, y, z);
+      scene.cloud.vertices.colours.push_back(label == 0   ? sherd::Rgb8{12, 12, 12}
+                                             : label == 1 ? upper_colour
+                                                          : sherd::Rgb8{180, 120, 80});
+      scene.truth.push_back(label);
+    }
+  }
+  return scene;
+}
+
+std::size_t sherds_found(const TwoLevels& scene) {
+  seg::Params params;
+  params.contact_erosion_mm = 5.0;
+  params.plane_min_extent_mm = 100.0;  // the 120 mm plate is the support
+  const auto result = seg::segment(scene.cloud, params);
+  std::size_t truth_points = 0;
+  for (int label : scene.truth) truth_points += label != 0;
+  std::size_t found_points = 0;
+  for (const auto& part : result.sherds) found_points += part.indices.size();
+  EXPECT_GE(found_points, 0.99 * truth_points);
+  return result.sherds.size();
+}
+
+// A 5 mm step of the same height all along its 50 mm, the same clay on both levels: one sherd
+// (a ring foot's recess, a lip), although its levels meet in 3-D only across the ramp.
+TEST(SteppedSherd, AnEvenStepInOneClayIsOneSherd) {
+  const auto scene = two_levels([](float) { return 10.0f; }, sherd::Rgb8{144, 96, 64});
+  EXPECT_EQ(sherds_found(scene), 1u);
+}
+
+// The same step between two clays (hue (g/r, b/r) 0.67, 0.44 against 0.82, 0.65): two sherds.
+TEST(SteppedSherd, AnEvenStepBetweenTwoClaysIsTwoSherds) {
+  const auto scene = two_levels([](float) { return 10.0f; }, sherd::Rgb8{170, 140, 110});
+  EXPECT_EQ(sherds_found(scene), 2u);
+}
+
+// One clay, but a step that grows from 1 to 9 mm along the border, as where a sherd leans on
+// another and rests on one end: two sherds.
+TEST(SteppedSherd, AStepGrowingAlongTheBorderIsTwoSherds) {
+  const auto scene = two_levels([](float y) { return 6.0f + 8.0f * (y + 25.0f) / 50.0f; },
+                                sherd::Rgb8{144, 96, 64});
+  EXPECT_EQ(sherds_found(scene), 2u);
+}
+
 // PNG header: width and height are the big-endian words at bytes 16 and 20.
 std::pair<int, int> png_size(const std::filesystem::path& file) {
   std::ifstream in(file, std::ios::binary);
