@@ -5,7 +5,9 @@
 //     bunNNN only, each seeded by the nominal angle NNN in its name about the turntable axis.
 //  2. The simulated station (scenes "frame" and "vessel") for --seeds seeds, 8 views each, the
 //     encoder angle perturbed by up to ±0.5° and the translation by up to 0.2 mm.
-// Errors compare relative poses (view 0 → view i), so the arbitrary world frame cancels.
+// Errors compare relative poses (view 0 → view i), so the arbitrary world frame cancels; the
+// translation error is given at the scanner origin, the world origin and the view's centroid.
+// Ours also reports its whole time over the pairs it refined (seconds per pair).
 // Prints one JSON object per view and method, then a summary per data set and method (and for the
 // reference poses themselves, "reference": how well the views agree under them).
 //   bench_registration [--conf DIR/bun.conf] [--config config/station.toml] [--seeds 3]
