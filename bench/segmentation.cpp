@@ -144,10 +144,9 @@ int main(int argc, char** argv) {
   std::vector<double> precisions, recalls, times;
   int exact = 0, merged = 0, split = 0;
   for (int n = 0; n < trays; ++n) {
-    sim::TraySpec spec;
-    spec.seed = seed + static_cast<std::uint64_t>(n);
-    spec.sherds = 1 + static_cast<int>(spec.seed * 7 % sim::kMaxTraySherds);  // 1…20, spread
-    spec.background = n % 2 == 0 ? sim::Background::Black : sim::Background::White;
+    sim::TraySpec spec =
+        sim::bench_tray_spec(seed + static_cast<std::uint64_t>(n),
+                             n % 2 == 0 ? sim::Background::Black : sim::Background::White);
     spec.grid_mm = grid;
     const sim::Tray tray = sim::make_tray(spec);
     const auto start = std::chrono::steady_clock::now();

@@ -35,6 +35,16 @@ struct Tray {
   int leaning = 0;   // sherds resting partly on another
 };
 
+// The tray bench_segmentation lays for `seed`: its sherd count (1…kMaxTraySherds) spread over the
+// seeds. Tests rebuild the bench's failing trays from it by seed.
+inline TraySpec bench_tray_spec(std::uint64_t seed, Background background) {
+  TraySpec spec;
+  spec.seed = seed;
+  spec.sherds = 1 + static_cast<int>(seed * 7 % kMaxTraySherds);
+  spec.background = background;
+  return spec;
+}
+
 // InputError for a sherd count outside 1…kMaxTraySherds or a grid step outside [0.1, 2] mm.
 Tray make_tray(const TraySpec& spec);
 

@@ -80,13 +80,9 @@ INSTANTIATE_TEST_SUITE_P(Seeds, TouchingTray, ::testing::Values(1u, 2u, 3u));
 class NarrowSherdTray : public ::testing::TestWithParam<std::uint64_t> {};
 
 TEST_P(NarrowSherdTray, TheNarrowSherdIsFoundOnItsOwn) {
-  sim::TraySpec spec;
-  spec.seed = GetParam();
-  spec.sherds = 1 + static_cast<int>(spec.seed * 7 % sim::kMaxTraySherds);
-  spec.background = sim::Background::White;
-  const sim::Tray tray = sim::make_tray(spec);
-  expect_each_sherd_found_once(tray, seg::segment(tray.cloud, tray_params(spec.background)), 0.95,
-                               0.9);
+  const sim::Tray tray = sim::make_tray(sim::bench_tray_spec(GetParam(), sim::Background::White));
+  expect_each_sherd_found_once(tray, seg::segment(tray.cloud, tray_params(tray.spec.background)),
+                               0.95, 0.9);
 }
 
 INSTANTIATE_TEST_SUITE_P(BenchTrays, NarrowSherdTray, ::testing::Values(4u, 42u));
@@ -146,11 +142,7 @@ class SteppedSherdTray : public ::testing::TestWithParam<std::uint64_t> {};
 
 TEST_P(SteppedSherdTray, BothLevelsOfTheSherdAreOneSherd) {
   for (auto background : {sim::Background::Black, sim::Background::White}) {
-    sim::TraySpec spec;
-    spec.seed = GetParam();
-    spec.sherds = 1 + static_cast<int>(spec.seed * 7 % sim::kMaxTraySherds);
-    spec.background = background;
-    const sim::Tray tray = sim::make_tray(spec);
+    const sim::Tray tray = sim::make_tray(sim::bench_tray_spec(GetParam(), background));
     expect_each_sherd_found_once(tray, seg::segment(tray.cloud, tray_params(background)), 0.95,
                                  0.9);
   }
