@@ -372,6 +372,7 @@ StationConfig load_station_config(const fs::path& file) {
   registration.read("max_correction_deg", reg.max_correction_deg, above_to(0, 180));
   registration.read("max_correction_mm", reg.max_correction_mm, above(0));
   registration.read("use_colour", reg.use_colour);
+  registration.read("weight_by_incidence", reg.weight_by_incidence);
   registration.reject_unknown_keys();
 
   auto& seg = config.segmentation;

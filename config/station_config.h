@@ -118,6 +118,7 @@ struct RegistrationSettings {
   double max_correction_deg = 3.0;        // a larger correction from the turntable prior is flagged
   double max_correction_mm = 5.0;
   bool use_colour = true;                 // photometric term where views have colour
+  bool weight_by_incidence = true;        // grazing points pull less (registration.h)
 };
 
 struct SegmentationSettings {

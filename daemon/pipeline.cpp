@@ -41,6 +41,7 @@ registration::Params registration_params(const config::RegistrationSettings& s) 
   p.max_correction_deg = s.max_correction_deg;
   p.max_correction_mm = s.max_correction_mm;
   p.use_colour = s.use_colour;
+  p.weight_by_incidence = s.weight_by_incidence;
   return p;
 }
 

@@ -64,6 +64,13 @@ void check_input(const std::vector<ViewInput>& views, const PriorUncertainty& pr
         "degenerate_eigenvalue_ratio in [0, 1)); fix the "
         "registration parameters");
   }
+  if (const auto& rays = params.parallel_rays_towards_scanner;
+      rays && !(rays->allFinite() && rays->norm() > 0)) {
+    throw InputError(fmt::format(
+        "registration: parallel_rays_towards_scanner ({}, {}, {}) is not a direction; give the "
+        "scanner's viewing direction in its own frame, or leave it unset for a camera",
+        rays->x(), rays->y(), rays->z()));
+  }
   if (!(prior.angle_sd_deg > 0) || !(prior.tilt_sd_deg > 0) || !(prior.translation_sd_mm > 0) ||
       !std::isfinite(prior.angle_sd_deg + prior.tilt_sd_deg + prior.translation_sd_mm)) {
     throw InputError(
@@ -492,13 +499,24 @@ struct ViewData {
   double rms_radius_mm = 0.0;  // about the centroid: scales rotations to millimetres
   // How far the prior's uncertainty may move a point of this view (1 σ, mm).
   double prior_displacement_sd_mm = 0.0;
+  // Per point of at_prior: |cos| of the angle between its normal and its ray to the scanner.
+  std::vector<float> incidence;
 
   bool coloured() const { return !colour.empty(); }
 };
 
 ViewData prepare_view(const ViewInput& input, const PriorUncertainty& prior, const Params& params) {
   ViewData data;
-  data.at_prior = transformed(*view_cloud(*input.view, params.voxel_mm), input.prior);
+  const CloudT::Ptr in_scanner_frame = view_cloud(*input.view, params.voxel_mm);
+  data.incidence.reserve(in_scanner_frame->size());
+  for (const auto& p : *in_scanner_frame) {
+    const Eigen::Vector3f towards_scanner =
+        params.parallel_rays_towards_scanner
+            ? Eigen::Vector3f(params.parallel_rays_towards_scanner->cast<float>().normalized())
+            : Eigen::Vector3f(-p.getVector3fMap().normalized());
+    data.incidence.push_back(std::abs(p.getNormalVector3fMap().dot(towards_scanner)));
+  }
+  data.at_prior = transformed(*in_scanner_frame, input.prior);
   const CloudT& cloud = *data.at_prior;
   if (cloud.empty()) return data;
   data.tree = std::make_shared<pcl::search::KdTree<PointT>>(kUnsortedResults);
@@ -678,11 +696,16 @@ PairRefinement refine_pair(const ViewData& target, const ViewData& source,
         const double photometric_weight = 1.0 / (photometric_sd * photometric_sd);
 
         NormalEquations geometry, photometry;
+        const bool by_incidence = last_stage && params.weight_by_incidence;
         for (std::size_t k = 0; k < pairs.size(); ++k) {
           const Vec3d p = (*moved)[pairs[k].source].getVector3fMap().cast<double>();
+          const double incidence = by_incidence
+                                       ? static_cast<double>(target.incidence[pairs[k].target]) *
+                                             source.incidence[source.sample[pairs[k].source]]
+                                       : 1.0;
           geometry.add((p - c) / s,
                        target_cloud[pairs[k].target].getNormalVector3fMap().cast<double>(),
-                       geometric[k], geometric_weight);
+                       geometric[k], incidence * incidence * geometric_weight);
           if (colour && std::isfinite(photometric[k])) {
             // Huber: a row beyond kHuberThreshold standard deviations (a shadow's or an
             // occlusion's edge, which moves with the scanner, not with the clay) pulls with a
