@@ -387,6 +387,54 @@ std::vector<std::pair<int, int>> levels_of_one_sherd(
   return levels;
 }
 
+// Two parts of sherd-sized cores that meet along a border about as long as the narrower of them
+// is wide — no neck between them — are one sherd that the erosion cut where it narrows a little (a
+// long rim strip, a lip band along a rim), when their cores share the clay's hue (closer than
+// kNoNeckMaxHueDifference). Where two sherds touch, the contact is a neck shorter than either is
+// wide. The border's length is the area of the bands along it (voxels of either part within
+// `radius` of the other, about `radius` wide each) over 2 × radius; a part's width is twice its
+// deepest voxel's distance from the cluster's boundary (`depth`). Measured on bench_segmentation
+// (100 trays each of seeds 1, 2, 1001, pairs of parts left apart by the rules above): one
+// sherd's parts (trays 1026, 1059, 1088; 92 of seeds 1 and 2) had borders 0.87–2.06 × the
+// narrower's width and core hues 0.001–0.005 apart; different sherds of hues closer than 0.02,
+// 0.30–0.44 ×; different sherds with borders over 0.7 × had hues 0.025–0.047 apart.
+constexpr double kNoNeckMinBorderShare = 0.7;
+constexpr double kNoNeckMaxHueDifference = 0.012;
+
+// Pairs (a, b) of parts (by `tag`) with no neck between them, among the voxels `among` of the
+// parts marked in `judged`.
+std::vector<std::pair<int, int>> parts_without_neck(
+    const Graph& near, const std::vector<std::uint32_t>& among, const std::vector<int>& tag,
+    const std::vector<float>& depth, const std::vector<std::uint8_t>& judged,
+    const std::vector<Vec3f>& core_rgb, double radius, double leaf) {
+  const int parts = static_cast<int>(core_rgb.size());
+  std::vector<float> deepest(parts, 0.0f);
+  std::vector<std::vector<std::size_t>> band(parts, std::vector<std::size_t>(parts, 0));
+  std::vector<int> beside;
+  for (auto v : among) {
+    deepest[tag[v]] = std::max(deepest[tag[v]], depth[v]);
+    beside.clear();
+    for (auto n : near[v]) {
+      if (tag[n] != tag[v] && judged[tag[n]] &&
+          std::find(beside.begin(), beside.end(), tag[n]) == beside.end())
+        beside.push_back(tag[n]);
+    }
+    for (int b : beside) ++band[tag[v]][b];
+  }
+  std::vector<std::pair<int, int>> pairs;
+  for (int a = 0; a < parts; ++a) {
+    for (int b = a + 1; b < parts; ++b) {
+      if (!judged[a] || !judged[b] || band[a][b] == 0) continue;
+      const double border_mm = (band[a][b] + band[b][a]) * leaf * leaf / (2.0 * radius);
+      const double narrower_mm = 2.0 * std::min(deepest[a], deepest[b]);
+      if (border_mm >= kNoNeckMinBorderShare * narrower_mm &&
+          (hue(core_rgb[a]) - hue(core_rgb[b])).norm() < kNoNeckMaxHueDifference)
+        pairs.emplace_back(a, b);
+    }
+  }
+  return pairs;
+}
+
 // Splits one Euclidean cluster where sherds touch or lean on each other. A sherd's surface is
 // a patch that stays wide everywhere, while two sherds meet at a point or along a short stretch
 // of their edges: eroding the cluster (voxels within `erosion` of its boundary, measured along
@@ -464,6 +512,9 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
       if (sherd_sized[tag[v]]) judged.push_back(v);
     }
     for (auto [a, b] : levels_of_one_sherd(near, centres, judged, tag, core_rgb, radius))
+      group[root(a)] = root(b);
+    for (auto [a, b] : parts_without_neck(near, judged, tag, distance, sherd_sized, core_rgb,
+                                          radius, radius / kVoxelsPerTolerance))
       group[root(a)] = root(b);
   }
   std::vector<int> part_of(cores, -1);
