@@ -639,6 +639,92 @@ std::vector<std::vector<std::uint32_t>> join_across_unseen_walls(
   return joined;
 }
 
+// A part holding two sherds of different clays — a narrow or stepped sherd against a larger one
+// that the erosion left no core of its own — is split by colour. Its voxels' hues (each over its
+// neighbourhood within the part, to average out the 8-bit noise) fall into two groups (2-means);
+// when the groups' colours are neither one clay nor that clay mixed with grey (a sherd's fracture
+// faces: off each other's clay-to-grey line by at least kTwoClaysMinOffLine) and each group's
+// largest connected region covers kTwoClaysMinMm2, those regions are the two sherds' seeds and
+// every voxel of the part goes to the nearer along the surface. Measured on bench_segmentation
+// (100 trays each), exact count and merged / split sherds before → after: seeds 1 and 2
+// 93 → 94 %, 5 / 6 → 4 / 6 (tray 69: precision 0.886 → 0.985); 1001 unchanged; 5001 92 %,
+// 3 / 10 → 2 / 11 (5037 right, 5044 one sherd more); 7001 94 → 95 %, 4 / 10 → 2 / 11.
+constexpr double kTwoClaysMinOffLine = 0.03;
+constexpr double kTwoClaysMinMm2 = 300.0;
+
+// `parts` (voxel lists), each split in two where it holds two clays; `distance` and `tag` are
+// scratch space sized for all voxels.
+std::vector<std::vector<std::uint32_t>> split_two_clays(
+    std::vector<std::vector<std::uint32_t>> parts, const Graph& near,
+    const std::vector<Vec3f>& centres, const std::vector<Vec3f>& voxel_rgb, double leaf,
+    std::vector<float>& distance, std::vector<int>& tag) {
+  const auto min_group = static_cast<std::size_t>(kTwoClaysMinMm2 / (leaf * leaf));
+  std::vector<std::vector<std::uint32_t>> result;
+  std::vector<std::uint8_t> mark(near.size(), 0);
+  for (auto& part : parts) {
+    if (part.size() < 2 * min_group) {
+      result.push_back(std::move(part));
+      continue;
+    }
+    for (auto v : part) mark[v] = 1;
+    std::vector<Eigen::Vector2f> h(part.size());
+    for (std::size_t k = 0; k < part.size(); ++k) {
+      Vec3f sum = voxel_rgb[part[k]];
+      for (auto n : near[part[k]]) {
+        if (mark[n]) sum += voxel_rgb[n];
+      }
+      h[k] = hue(sum);
+    }
+    // 2-means, started from the mean and the hue farthest from it.
+    Eigen::Vector2f mean = Eigen::Vector2f::Zero();
+    for (const auto& x : h) mean += x;
+    mean /= static_cast<float>(h.size());
+    std::size_t far = 0;
+    for (std::size_t k = 0; k < h.size(); ++k) {
+      if ((h[k] - mean).norm() > (h[far] - mean).norm()) far = k;
+    }
+    Eigen::Vector2f centre[2] = {h[far], mean};
+    std::vector<std::uint8_t> group(h.size());
+    for (int round = 0; round < 8; ++round) {
+      Eigen::Vector2f sum[2] = {Eigen::Vector2f::Zero(), Eigen::Vector2f::Zero()};
+      std::size_t count[2] = {0, 0};
+      for (std::size_t k = 0; k < h.size(); ++k) {
+        group[k] = (h[k] - centre[1]).norm() < (h[k] - centre[0]).norm();
+        sum[group[k]] += h[k];
+        ++count[group[k]];
+      }
+      for (int g = 0; g < 2; ++g) {
+        if (count[g] > 0) centre[g] = sum[g] / static_cast<float>(count[g]);
+      }
+    }
+    Vec3f rgb[2] = {Vec3f::Zero(), Vec3f::Zero()};
+    for (std::size_t k = 0; k < h.size(); ++k) rgb[group[k]] += voxel_rgb[part[k]];
+    bool two_clays = std::min(off_clay_line(rgb[0], rgb[1]), off_clay_line(rgb[1], rgb[0])) >=
+                     kTwoClaysMinOffLine;
+    std::vector<std::pair<std::uint32_t, int>> seeds;
+    for (int g = 0; g < 2 && two_clays; ++g) {
+      for (std::size_t k = 0; k < h.size(); ++k) mark[part[k]] = group[k] == g;
+      std::vector<std::uint32_t> largest;
+      for (auto& region : components(near, part, mark)) {
+        if (region.size() > largest.size()) largest = std::move(region);
+      }
+      two_clays = largest.size() >= min_group;
+      for (auto v : largest) seeds.emplace_back(v, g);
+    }
+    for (auto v : part) mark[v] = 0;
+    if (!two_clays) {
+      result.push_back(std::move(part));
+      continue;
+    }
+    geodesic_from(near, centres, part, seeds, distance, tag);
+    std::vector<std::uint32_t> halves[2];
+    for (auto v : part) halves[tag[v] == 1].push_back(v);
+    result.push_back(std::move(halves[0]));
+    result.push_back(std::move(halves[1]));
+  }
+  return result;
+}
+
 // Euclidean clusters of the candidates, each split where sherds touch, as sorted point indices.
 // The clustering distance is the configured one or, where the points lie sparser than that
 // allows, kSpacingsPerTolerance point spacings: the scale comes from the data.
@@ -691,6 +777,8 @@ std::vector<std::vector<std::uint32_t>> clusters(const std::vector<Vec3f>& point
     parts =
         join_across_unseen_walls(std::move(parts), voxels.centres, voxel_rgb, distance, tolerance,
                                  params.contact_erosion_mm, sizes.min_core_voxels, leaf);
+  if (params.contact_erosion_mm > 0.0 && !voxel_rgb.empty())
+    parts = split_two_clays(std::move(parts), near, voxels.centres, voxel_rgb, leaf, distance, tag);
   std::vector<std::vector<std::uint32_t>> found;
   for (const auto& part : parts) {
     std::vector<std::uint32_t> members;

@@ -249,6 +249,19 @@ TEST_P(NoNeckTray, TheSherdIsFoundWhole) {
 
 INSTANTIATE_TEST_SUITE_P(BenchTrays, NoNeckTray, ::testing::Values(1026u, 1059u, 1088u));
 
+// A tray of bench_segmentation (seed 1's tray 69, black plate) in which a stepped sherd (truth
+// sherd 4, a ring foot's recess) touches a larger one of another clay (sherd 2) and the erosion
+// leaves it no core of its own: one part of two clays, split by colour (found as one sherd
+// before: 3 of 4, precision 0.886).
+TEST(TwoClays, ASteppedSherdAgainstAnotherClayIsFoundOnItsOwn) {
+  const sim::Tray tray = sim::make_tray(sim::bench_tray_spec(69, sim::Background::Black));
+  // The cut between the two clays goes halfway along the surface between their largest regions,
+  // not exactly along the contact: ≈ 11 % of one part's points are its neighbour's (precision
+  // 0.89).
+  expect_each_sherd_found_once(tray, seg::segment(tray.cloud, tray_params(tray.spec.background)),
+                               0.85, 0.85);
+}
+
 // A 40 × 50 mm sherd at 5 mm on a black plate seen from above every 0.5 mm and, right beside it, a
 // 6.5 mm wide strip 9 mm higher along its 50 mm edge (x from 0.5 to 7 mm): the wall between them
 // is never sampled, so the strip is a cluster of its own, and too narrow for the erosion to leave
