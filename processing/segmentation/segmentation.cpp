@@ -448,7 +448,8 @@ std::vector<std::pair<int, int>> parts_without_neck(
 // Params::contact_min_core_mm2) and its part joins a neighbour — unless that part covers
 // `min_own_basin_voxels` (Params::contact_own_basin_mm2): then it is a narrow sherd; with fewer
 // than two cores the cluster stays whole. Two sherd-sized cores' parts that are one sherd's levels
-// (levels_of_one_sherd; needs colours, `voxel_rgb` sums per voxel, empty when none) are joined.
+// (levels_of_one_sherd) or have no neck between them (parts_without_neck) are joined; both need
+// colours (`voxel_rgb` sums per voxel, empty when none).
 struct CoreSizes {
   std::size_t min_core_voxels;       // smaller cores are ignored
   std::size_t min_own_core_voxels;   // smaller cores' parts join a neighbour …
