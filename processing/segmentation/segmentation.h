@@ -21,7 +21,11 @@ struct Params {
   // about twice this are cut, so a sherd must be wider than that everywhere. 0: no splitting.
   // Off by default: on a tray seen from above (bench_segmentation) 5 mm splits touching sherds,
   // but on the station's fused frame scans, which show both faces of a standing sherd, each face
-  // erodes to a core of its own and sherds come out split in two.
+  // erodes to a core of its own and sherds come out split in two. With it, a narrow piece the
+  // erosion leaves no core, cut off from its sherd by a wall too steep to be seen from above (the
+  // raised edge of a leaning sherd), joins the sherd it borders in the top view in its clay; two
+  // parts of one hue with no neck between them are one sherd; and a part of two clays is split
+  // by colour (segmentation.cpp, with the measurements).
   double contact_erosion_mm = 0.0;
   // A core left by that erosion stands for a sherd of its own only when it covers at least this
   // much of the plate; a smaller one (but at least what a sherd of min_extent_mm keeps) is mostly
