@@ -499,7 +499,8 @@ struct ViewData {
   double rms_radius_mm = 0.0;  // about the centroid: scales rotations to millimetres
   // How far the prior's uncertainty may move a point of this view (1 σ, mm).
   double prior_displacement_sd_mm = 0.0;
-  // Per point of at_prior: |cos| of the angle between its normal and its ray to the scanner.
+  // Per point of at_prior: |cos| of the angle between its normal and its ray to the scanner
+  // (filled only where Params::weight_by_incidence asks for it).
   std::vector<float> incidence;
 
   bool coloured() const { return !colour.empty(); }
@@ -508,13 +509,16 @@ struct ViewData {
 ViewData prepare_view(const ViewInput& input, const PriorUncertainty& prior, const Params& params) {
   ViewData data;
   const CloudT::Ptr in_scanner_frame = view_cloud(*input.view, params.voxel_mm);
-  data.incidence.reserve(in_scanner_frame->size());
-  for (const auto& p : *in_scanner_frame) {
-    const Eigen::Vector3f towards_scanner =
-        params.parallel_rays_towards_scanner
-            ? Eigen::Vector3f(params.parallel_rays_towards_scanner->cast<float>().normalized())
-            : Eigen::Vector3f(-p.getVector3fMap().normalized());
-    data.incidence.push_back(std::abs(p.getNormalVector3fMap().dot(towards_scanner)));
+  if (params.weight_by_incidence) {
+    const auto& parallel = params.parallel_rays_towards_scanner;
+    const Eigen::Vector3f parallel_ray =
+        parallel ? Eigen::Vector3f(parallel->cast<float>().normalized()) : Eigen::Vector3f::Zero();
+    data.incidence.reserve(in_scanner_frame->size());
+    for (const auto& p : *in_scanner_frame) {
+      const Eigen::Vector3f towards_scanner =
+          parallel ? parallel_ray : Eigen::Vector3f(-p.getVector3fMap().normalized());
+      data.incidence.push_back(std::abs(p.getNormalVector3fMap().dot(towards_scanner)));
+    }
   }
   data.at_prior = transformed(*in_scanner_frame, input.prior);
   const CloudT& cloud = *data.at_prior;

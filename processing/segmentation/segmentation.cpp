@@ -18,7 +18,6 @@
 #include <numbers>
 #include <numeric>
 #include <queue>
-#include <set>
 
 #include "core/errors.h"
 
@@ -597,12 +596,13 @@ std::vector<std::vector<std::uint32_t>> join_across_unseen_walls(
     for (auto v : parts[p]) colour[p] += voxel_rgb[v];
   }
   std::vector<int> joins(n_parts, -1);
+  std::vector<int> beside;  // the cored parts a voxel borders across a step
   for (int p : narrow) {
     std::map<int, std::size_t> bordering, steps, contacts;  // per cored part
     for (auto v : parts[p]) {
       tree.radiusSearch(pcl::PointXYZ(centres[v].x(), centres[v].y(), 0.0f), radius, found,
                         distances);
-      std::set<int> beside;
+      beside.clear();
       for (auto f : found) {
         const auto n = voxel_at[f];
         const int q = part_of[n];
@@ -610,7 +610,7 @@ std::vector<std::vector<std::uint32_t>> join_across_unseen_walls(
           ++contacts[q];
         } else {
           ++steps[q];
-          beside.insert(q);
+          if (std::find(beside.begin(), beside.end(), q) == beside.end()) beside.push_back(q);
         }
       }
       for (int q : beside) ++bordering[q];
@@ -774,12 +774,12 @@ std::vector<std::vector<std::uint32_t>> clusters(const std::vector<Vec3f>& point
                      : std::vector<std::vector<std::uint32_t>>{cluster};
     for (auto& part : split) parts.push_back(std::move(part));
   }
-  if (params.contact_erosion_mm > 0.0 && !voxel_rgb.empty())
+  if (params.contact_erosion_mm > 0.0 && !voxel_rgb.empty()) {
     parts =
         join_across_unseen_walls(std::move(parts), voxels.centres, voxel_rgb, distance, tolerance,
                                  params.contact_erosion_mm, sizes.min_core_voxels, leaf);
-  if (params.contact_erosion_mm > 0.0 && !voxel_rgb.empty())
     parts = split_two_clays(std::move(parts), near, voxels.centres, voxel_rgb, leaf, distance, tag);
+  }
   std::vector<std::vector<std::uint32_t>> found;
   for (const auto& part : parts) {
     std::vector<std::uint32_t> members;
