@@ -14,6 +14,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <numbers>
 #include <numeric>
@@ -640,26 +641,184 @@ std::vector<std::vector<std::uint32_t>> join_across_unseen_walls(
   return joined;
 }
 
-// A part holding two sherds of different clays — a narrow or stepped sherd against a larger one
-// that the erosion left no core of its own — is split by colour. Its voxels' hues (each over its
-// neighbourhood within the part, to average out the 8-bit noise) fall into two groups (2-means);
-// when the groups' colours are neither one clay nor that clay mixed with grey (a sherd's fracture
-// faces: off each other's clay-to-grey line by at least kTwoClaysMinOffLine) and each group's
-// largest connected region covers kTwoClaysMinMm2, those regions are the two sherds' seeds and
-// every voxel of the part goes to the nearer along the surface. Measured on bench_segmentation
-// (100 trays each), exact count and merged / split sherds before → after: seeds 1 and 2
-// 93 → 94 %, 5 / 6 → 4 / 6 (tray 69: precision 0.886 → 0.985); 1001 unchanged; 5001 92 %,
-// 3 / 10 → 2 / 11 (5037 right, 5044 one sherd more); 7001 94 → 95 %, 4 / 10 → 2 / 11.
-constexpr double kTwoClaysMinOffLine = 0.03;
-constexpr double kTwoClaysMinMm2 = 300.0;
+// A part holding sherds of different clays is split by colour: a narrow or stepped sherd against
+// a larger one that the erosion left no core of its own, or two sherds touching along a contact
+// wider than the erosion cuts. Every sherd shows one clay on its surfaces (shading and firing
+// clouds change brightness, not the hue (g/r, b/r)) and that clay mixed with grey on its fracture
+// faces (the fired core). So the part's clays are the peaks of its voxels' hue histogram (each
+// voxel's hue over its neighbourhood within the part, to average out the 8-bit noise) that are
+// not the face of another peak; a peak is a face of another when it lies within kSameHue of it
+// (one clay's noise) or greyer than it, within kFaceCone (as a ratio of the distance along that
+// line) and kFaceMaxAcross of the line from its hue to grey. Each clay whose largest connected
+// region covers kClayMinMm2 seeds a sherd, and every voxel of the part goes to the nearest seed
+// along the surface. Measured on bench_segmentation (100 trays each of seeds 1 / 1001 / 5001,
+// peaks holding at least a quarter of that area): one sherd's face peaks lay 0.000–0.013 across
+// its clay's line, at most 0.07 × their distance along it; the second clays of the parts that
+// merged two sherds (trays 34, 38, 54, 77 of seed 1) 0.016–0.050 across, 0.28–0.68 × along. The
+// earlier rule (two groups by 2-means, off each other's line by 0.03) split the fracture faces
+// from the clays and left all four merged. Merged sherds 4 / 2 / 2 → 0 / 0 / 1.
+constexpr double kClayMinMm2 = 300.0;
+// Hue histogram bin and smoothing (Gaussian sigma, in bins): a voxel's hue, averaged over its
+// neighbourhood, scatters by about 0.004 within one clay.
+constexpr float kHueBin = 0.004f;
+constexpr float kHueSmoothBins = 1.5f;
+constexpr float kSameHue = 0.015f;
+constexpr float kFaceCone = 0.15f;
+constexpr float kFaceMaxAcross = 0.03f;
 
-// `parts` (voxel lists), each split in two where it holds two clays; `distance` and `tag` are
+// Peaks of the histogram of hues `h` (bins of kHueBin, Gaussian-smoothed), as hues. The histogram
+// spans the central 99 % of the hues on each axis: a few voxels of odd colour must not make it huge.
+std::vector<Eigen::Vector2f> hue_peaks(const std::vector<Eigen::Vector2f>& h) {
+  auto range = [&](int axis) {
+    std::vector<float> values(h.size());
+    for (std::size_t k = 0; k < h.size(); ++k) values[k] = h[k][axis];
+    auto at = [&](double q) {
+      const auto it = values.begin() + static_cast<std::ptrdiff_t>(q * (values.size() - 1));
+      std::nth_element(values.begin(), it, values.end());
+      return *it;
+    };
+    const float low = at(0.005);
+    return std::pair(low, at(0.995));
+  };
+  const auto [x0, x1] = range(0);
+  const auto [y0, y1] = range(1);
+  const int pad = static_cast<int>(std::ceil(3 * kHueSmoothBins));
+  const int nx = static_cast<int>((x1 - x0) / kHueBin) + 1 + 2 * pad;
+  const int ny = static_cast<int>((y1 - y0) / kHueBin) + 1 + 2 * pad;
+  auto at = [nx](int i, int j) { return static_cast<std::size_t>(j) * nx + i; };
+  std::vector<float> counts(static_cast<std::size_t>(nx) * ny, 0.0f);
+  for (const auto& v : h) {
+    const int i = pad + static_cast<int>(std::floor((v.x() - x0) / kHueBin));
+    const int j = pad + static_cast<int>(std::floor((v.y() - y0) / kHueBin));
+    if (i >= 0 && j >= 0 && i < nx && j < ny) counts[at(i, j)] += 1.0f;
+  }
+  std::vector<float> kernel(2 * pad + 1);
+  for (int d = -pad; d <= pad; ++d)
+    kernel[d + pad] = std::exp(-0.5f * d * d / (kHueSmoothBins * kHueSmoothBins));
+  // Separable smoothing: along i (di = 1), then along j (dj = 1).
+  auto smooth = [&](const std::vector<float>& in, int di, int dj) {
+    std::vector<float> out(in.size(), 0.0f);
+    for (int j = 0; j < ny; ++j) {
+      for (int i = 0; i < nx; ++i) {
+        for (int d = -pad; d <= pad; ++d) {
+          const int ii = i + d * di, jj = j + d * dj;
+          if (ii >= 0 && jj >= 0 && ii < nx && jj < ny)
+            out[at(i, j)] += kernel[d + pad] * in[at(ii, jj)];
+        }
+      }
+    }
+    return out;
+  };
+  const std::vector<float> density = smooth(smooth(counts, 1, 0), 0, 1);
+  std::vector<Eigen::Vector2f> peaks;
+  for (int j = 1; j + 1 < ny; ++j) {
+    for (int i = 1; i + 1 < nx; ++i) {
+      const float here = density[at(i, j)];
+      bool peak = here > 0.0f;
+      // Higher than the neighbours before it, at least as high as those after: one bin of a
+      // plateau.
+      for (int n = 0; n < 9 && peak; ++n) {
+        const float there = density[at(i + n % 3 - 1, j + n / 3 - 1)];
+        peak = n == 4 || (n < 4 ? here > there : here >= there);
+      }
+      if (peak)
+        peaks.emplace_back(x0 + (i - pad + 0.5f) * kHueBin, y0 + (j - pad + 0.5f) * kHueBin);
+    }
+  }
+  return peaks;
+}
+
+// Groups the voxels of a part (hues `h`, colour sums voxel_rgb[part[k]]) by clay: every voxel to
+// its nearest hue peak (peaks holding fewer than `min_voxels` dropped, the smallest first), and
+// each peak that is the face of another (see kFaceCone) to the clay whose line it lies nearest.
+// Returns the number of clays; clay_of[k] is voxel k's, −1 for a mixture of two (see below).
+int clays_of(const std::vector<Eigen::Vector2f>& h, std::size_t min_voxels,
+             const std::vector<std::uint32_t>& part, const std::vector<Vec3f>& voxel_rgb,
+             std::vector<int>& clay_of) {
+  std::vector<Eigen::Vector2f> peaks = hue_peaks(h);
+  clay_of.assign(h.size(), 0);
+  std::vector<std::size_t> held;
+  while (true) {
+    held.assign(peaks.size(), 0);
+    for (std::size_t k = 0; k < h.size(); ++k) {
+      int best = 0;
+      for (int p = 1; p < static_cast<int>(peaks.size()); ++p) {
+        if ((h[k] - peaks[p]).squaredNorm() < (h[k] - peaks[best]).squaredNorm()) best = p;
+      }
+      clay_of[k] = best;
+      ++held[best];
+    }
+    const auto fewest = std::min_element(held.begin(), held.end()) - held.begin();
+    if (peaks.size() <= 1 || held[fewest] >= min_voxels) break;
+    peaks.erase(peaks.begin() + fewest);
+  }
+  const int n = static_cast<int>(peaks.size());
+  std::vector<Vec3f> rgb(n, Vec3f::Zero());  // colour sums: the peaks' hues as the voxels show them
+  for (std::size_t k = 0; k < h.size(); ++k) rgb[clay_of[k]] += voxel_rgb[part[k]];
+  // How far peak p lies from being a face of peak q: its distance from q's hue when that is
+  // below kSameHue, else its distance across q's clay-to-grey line when it lies greyer than q,
+  // within kFaceCone of the line and kFaceMaxAcross of it; infinite when it is no face of q.
+  auto face_offset = [&](int p, int q) {
+    const Eigen::Vector2f c = hue(rgb[q]), d = hue(rgb[p]) - c;
+    if (d.norm() < kSameHue) return d.norm();
+    const Eigen::Vector2f to_grey = (Eigen::Vector2f(1.0f, 1.0f) - c).normalized();
+    const float along = d.dot(to_grey);
+    const float across = std::abs(d.x() * to_grey.y() - d.y() * to_grey.x());
+    const bool face = along > 0.0f && across < kFaceMaxAcross && across < kFaceCone * along;
+    return face ? across : std::numeric_limits<float>::infinity();
+  };
+  // Of two peaks of one hue, the one holding fewer voxels is the other's face.
+  auto face_of = [&](int p, int q) {
+    if ((hue(rgb[p]) - hue(rgb[q])).norm() < kSameHue)
+      return held[p] < held[q] || (held[p] == held[q] && p > q);
+    return std::isfinite(face_offset(p, q));
+  };
+  std::vector<std::uint8_t> is_clay(n, 1);
+  for (int p = 0; p < n; ++p) {
+    for (int q = 0; q < n && is_clay[p]; ++q) is_clay[p] = q == p || !face_of(p, q);
+  }
+  // A clay peak between two others, within kSameHue of the segment joining them, is their
+  // mixture: the voxels whose neighbourhood straddles the contact of two clays.
+  auto between = [&](int p, int a, int b) {
+    const Eigen::Vector2f ha = hue(rgb[a]), ab = hue(rgb[b]) - ha, ap = hue(rgb[p]) - ha;
+    const float t = ap.dot(ab) / ab.squaredNorm();
+    return t > 0.0f && t < 1.0f && (ap - t * ab).norm() < kSameHue;
+  };
+  std::vector<std::uint8_t> mixture(n, 0);
+  for (int p = 0; p < n; ++p) {
+    for (int a = 0; a < n && is_clay[p]; ++a) {
+      for (int b = a + 1; b < n && is_clay[p]; ++b) {
+        mixture[p] = a != p && b != p && is_clay[a] && is_clay[b] && between(p, a, b);
+        is_clay[p] = !mixture[p];
+      }
+    }
+  }
+  std::vector<int> clay(n, -1);
+  int clays = 0;
+  for (int p = 0; p < n; ++p) {
+    if (is_clay[p]) clay[p] = clays++;
+  }
+  for (int p = 0; p < n; ++p) {  // each face to the clay it fits best, else the nearest hue
+    if (clay[p] >= 0 || mixture[p]) continue;
+    float best_offset = std::numeric_limits<float>::infinity(), nearest = best_offset;
+    for (int q = 0; q < n; ++q) {
+      if (clay[q] < 0 || q == p) continue;
+      const float offset = face_offset(p, q), distance = (hue(rgb[p]) - hue(rgb[q])).norm();
+      if (offset < best_offset || (std::isinf(best_offset) && distance < nearest))
+        clay[p] = clay[q], best_offset = std::min(offset, best_offset), nearest = distance;
+    }
+  }
+  for (auto& c : clay_of) c = clay[c];
+  return clays;
+}
+
+// `parts` (voxel lists), each split where it holds several clays; `distance` and `tag` are
 // scratch space sized for all voxels.
-std::vector<std::vector<std::uint32_t>> split_two_clays(
+std::vector<std::vector<std::uint32_t>> split_by_clay(
     std::vector<std::vector<std::uint32_t>> parts, const Graph& near,
     const std::vector<Vec3f>& centres, const std::vector<Vec3f>& voxel_rgb, double leaf,
     std::vector<float>& distance, std::vector<int>& tag) {
-  const auto min_group = static_cast<std::size_t>(kTwoClaysMinMm2 / (leaf * leaf));
+  const auto min_group = static_cast<std::size_t>(kClayMinMm2 / (leaf * leaf));
   std::vector<std::vector<std::uint32_t>> result;
   std::vector<std::uint8_t> mark(near.size(), 0);
   for (auto& part : parts) {
@@ -676,52 +835,29 @@ std::vector<std::vector<std::uint32_t>> split_two_clays(
       }
       h[k] = hue(sum);
     }
-    // 2-means, started from the mean and the hue farthest from it.
-    Eigen::Vector2f mean = Eigen::Vector2f::Zero();
-    for (const auto& x : h) mean += x;
-    mean /= static_cast<float>(h.size());
-    std::size_t far = 0;
-    for (std::size_t k = 0; k < h.size(); ++k) {
-      if ((h[k] - mean).norm() > (h[far] - mean).norm()) far = k;
-    }
-    Eigen::Vector2f centre[2] = {h[far], mean};
-    std::vector<std::uint8_t> group(h.size());
-    for (int round = 0; round < 8; ++round) {
-      Eigen::Vector2f sum[2] = {Eigen::Vector2f::Zero(), Eigen::Vector2f::Zero()};
-      std::size_t count[2] = {0, 0};
-      for (std::size_t k = 0; k < h.size(); ++k) {
-        group[k] = (h[k] - centre[1]).norm() < (h[k] - centre[0]).norm();
-        sum[group[k]] += h[k];
-        ++count[group[k]];
-      }
-      for (int g = 0; g < 2; ++g) {
-        if (count[g] > 0) centre[g] = sum[g] / static_cast<float>(count[g]);
-      }
-    }
-    Vec3f rgb[2] = {Vec3f::Zero(), Vec3f::Zero()};
-    for (std::size_t k = 0; k < h.size(); ++k) rgb[group[k]] += voxel_rgb[part[k]];
-    bool two_clays = std::min(off_clay_line(rgb[0], rgb[1]), off_clay_line(rgb[1], rgb[0])) >=
-                     kTwoClaysMinOffLine;
+    std::vector<int> clay_of;
+    const int clays = clays_of(h, min_group / 4, part, voxel_rgb, clay_of);
     std::vector<std::pair<std::uint32_t, int>> seeds;
-    for (int g = 0; g < 2 && two_clays; ++g) {
-      for (std::size_t k = 0; k < h.size(); ++k) mark[part[k]] = group[k] == g;
+    int seeded = 0;
+    for (int g = 0; g < clays && clays > 1; ++g) {
+      for (std::size_t k = 0; k < h.size(); ++k) mark[part[k]] = clay_of[k] == g;
       std::vector<std::uint32_t> largest;
       for (auto& region : components(near, part, mark)) {
         if (region.size() > largest.size()) largest = std::move(region);
       }
-      two_clays = largest.size() >= min_group;
-      for (auto v : largest) seeds.emplace_back(v, g);
+      if (largest.size() < min_group) continue;
+      for (auto v : largest) seeds.emplace_back(v, seeded);
+      ++seeded;
     }
     for (auto v : part) mark[v] = 0;
-    if (!two_clays) {
+    if (seeded < 2) {
       result.push_back(std::move(part));
       continue;
     }
     geodesic_from(near, centres, part, seeds, distance, tag);
-    std::vector<std::uint32_t> halves[2];
-    for (auto v : part) halves[tag[v] == 1].push_back(v);
-    result.push_back(std::move(halves[0]));
-    result.push_back(std::move(halves[1]));
+    std::vector<std::vector<std::uint32_t>> pieces(seeded);
+    for (auto v : part) pieces[tag[v]].push_back(v);
+    for (auto& piece : pieces) result.push_back(std::move(piece));
   }
   return result;
 }
@@ -775,10 +911,15 @@ std::vector<std::vector<std::uint32_t>> clusters(const std::vector<Vec3f>& point
     for (auto& part : split) parts.push_back(std::move(part));
   }
   if (params.contact_erosion_mm > 0.0 && !voxel_rgb.empty()) {
+    // By clay first: a piece of a sherd cut off by colour from the neighbour it was flooded
+    // with then joins its sherd across the unseen wall (tray 89 of seed 1: a rim band behind
+    // its step). join_across_unseen_walls reads `distance`, so the colour split gets its own.
+    std::vector<float> clay_distance(voxels.centres.size());
+    parts = split_by_clay(std::move(parts), near, voxels.centres, voxel_rgb, leaf, clay_distance,
+                          tag);
     parts =
         join_across_unseen_walls(std::move(parts), voxels.centres, voxel_rgb, distance, tolerance,
                                  params.contact_erosion_mm, sizes.min_core_voxels, leaf);
-    parts = split_two_clays(std::move(parts), near, voxels.centres, voxel_rgb, leaf, distance, tag);
   }
   std::vector<std::vector<std::uint32_t>> found;
   for (const auto& part : parts) {

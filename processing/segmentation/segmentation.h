@@ -24,7 +24,7 @@ struct Params {
   // erodes to a core of its own and sherds come out split in two. With it, a narrow piece the
   // erosion leaves no core, cut off from its sherd by a wall too steep to be seen from above (the
   // raised edge of a leaning sherd), joins the sherd it borders in the top view in its clay; two
-  // parts of one hue with no neck between them are one sherd; and a part of two clays is split
+  // parts of one hue with no neck between them are one sherd; and a part of several clays is split
   // by colour (segmentation.cpp, with the measurements).
   double contact_erosion_mm = 0.0;
   // A core left by that erosion stands for a sherd of its own only when it covers at least this

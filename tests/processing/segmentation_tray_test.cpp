@@ -222,13 +222,19 @@ TEST(SteppedSherd, AStepGrowingAlongTheBorderIsTwoSherds) {
 // own, with no core (truth sherd 3 of tray 1062, 5 of 1068, 7 of 1099 found as two sherds before).
 class LeaningSherdStripTray : public ::testing::TestWithParam<std::uint64_t> {};
 
-// Tray `seed` of `bench_segmentation --seed 1001`, segmented: each sherd found once, to these shares.
-void expect_seed_1001_tray_found(std::uint64_t seed, double min_precision, double min_recall) {
-  // The bench alternates black and white from tray 1001 on.
-  const auto background = (seed - 1001) % 2 == 0 ? sim::Background::Black : sim::Background::White;
+// Tray `seed` of `bench_segmentation --seed first`, segmented: each sherd found once, to these
+// shares.
+void expect_bench_tray_found(std::uint64_t first, std::uint64_t seed, double min_precision,
+                             double min_recall) {
+  // The bench alternates black and white from its first tray on.
+  const auto background = (seed - first) % 2 == 0 ? sim::Background::Black : sim::Background::White;
   const sim::Tray tray = sim::make_tray(sim::bench_tray_spec(seed, background));
   expect_each_sherd_found_once(tray, seg::segment(tray.cloud, tray_params(background)),
                                min_precision, min_recall);
+}
+
+void expect_seed_1001_tray_found(std::uint64_t seed, double min_precision, double min_recall) {
+  expect_bench_tray_found(1001, seed, min_precision, min_recall);
 }
 
 TEST_P(LeaningSherdStripTray, TheStripIsPartOfItsSherd) {
@@ -262,37 +268,77 @@ TEST(TwoClays, ASteppedSherdAgainstAnotherClayIsFoundOnItsOwn) {
                                0.85, 0.85);
 }
 
-// A 40 × 50 mm sherd at 5 mm on a black plate seen from above every 0.5 mm and, right beside it, a
-// 6.5 mm wide strip 9 mm higher along its 50 mm edge (x from 0.5 to 7 mm): the wall between them
-// is never sampled, so the strip is a cluster of its own, and too narrow for the erosion to leave
-// it a core. Truth: 0 plate, 1 the sherd, 2 the strip.
-struct SherdAndStrip {
+// Trays of `bench_segmentation --seed 1` in which two sherds of different clays came out as one
+// part — a small sherd against a larger one, or a contact wider than the erosion cuts (truth
+// sherds 2 and 6 of tray 34, 1 and 5 of 38, 1 and 9 of 54, 3 and 5 of 77) — and the colour split
+// by two groups (2-means) took the fracture faces for the second clay.
+class TwoClaysTray : public ::testing::TestWithParam<std::uint64_t> {};
+
+TEST_P(TwoClaysTray, EachClayIsASherdOfItsOwn) { expect_bench_tray_found(1, GetParam(), 0.9, 0.9); }
+
+INSTANTIATE_TEST_SUITE_P(BenchTrays, TwoClaysTray, ::testing::Values(34u, 38u, 54u, 77u));
+
+// A black plate seen from above every 0.5 mm, x from −50 to 30 mm, y from −40 to 40 mm, with
+// what `cell` puts at (x, y): truth label (0 plate), height and colour.
+struct PlateScene {
   sherd::Mesh cloud;
   std::vector<int> truth;
 };
 
-SherdAndStrip sherd_and_strip(sherd::Rgb8 strip_colour) {
-  SherdAndStrip scene;
+struct Cell {
+  int label = 0;
+  float z = 0.0f;
+  sherd::Rgb8 colour{12, 12, 12};
+};
+
+template <typename CellAt>
+PlateScene plate_scene(CellAt&& cell_at) {
+  PlateScene scene;
   for (int j = -80; j <= 80; ++j) {
     for (int i = -100; i <= 60; ++i) {
       const float x = 0.5f * i, y = 0.5f * j;
-      int label = 0;
-      if (std::abs(y) <= 25 && x >= -40 && x <= 7) label = x <= 0 ? 1 : x >= 0.5f ? 2 : 0;
-      scene.cloud.vertices.points.emplace_back(x, y, label == 1 ? 5.0f : label == 2 ? 14.0f : 0.0f);
-      scene.cloud.vertices.colours.push_back(label == 0   ? sherd::Rgb8{12, 12, 12}
-                                             : label == 1 ? sherd::Rgb8{180, 120, 80}
-                                                          : strip_colour);
-      scene.truth.push_back(label);
+      const Cell cell = cell_at(x, y);
+      scene.cloud.vertices.points.emplace_back(x, y, cell.z);
+      scene.cloud.vertices.colours.push_back(cell.colour);
+      scene.truth.push_back(cell.label);
     }
   }
   return scene;
 }
 
-std::vector<seg::Part> segment_scene(const SherdAndStrip& scene) {
+// A 40 × 50 mm sherd at 5 mm and, right beside it, a 6.5 mm wide strip 9 mm higher along its
+// 50 mm edge (x from 0.5 to 7 mm): the wall between them is never sampled, so the strip is a
+// cluster of its own, and too narrow for the erosion to leave it a core. Truth: 1 the sherd, 2
+// the strip.
+PlateScene sherd_and_strip(sherd::Rgb8 strip_colour) {
+  return plate_scene([&](float x, float y) {
+    if (std::abs(y) > 25 || x < -40 || x > 7 || (x > 0 && x < 0.5f)) return Cell{};
+    return x <= 0 ? Cell{1, 5.0f, {180, 120, 80}} : Cell{2, 14.0f, strip_colour};
+  });
+}
+
+std::vector<seg::Part> segment_scene(const PlateScene& scene) {
   seg::Params params;
   params.contact_erosion_mm = 5.0;
   params.plane_min_extent_mm = 70.0;  // the 80 mm plate is the support
   return seg::segment(scene.cloud, params).sherds;
+}
+
+// Two sherds found, each standing for another truth sherd, of whose points it holds at least
+// `min_share`.
+void expect_two_sherds(const PlateScene& scene, double min_share) {
+  const auto sherds = segment_scene(scene);
+  ASSERT_EQ(sherds.size(), 2u);
+  std::set<int> stands_for;
+  for (const auto& part : sherds) {
+    std::map<int, std::size_t> counts;
+    for (auto i : part.indices) ++counts[scene.truth[i]];
+    const auto best = std::max_element(counts.begin(), counts.end(),
+                                       [](auto& a, auto& b) { return a.second < b.second; });
+    stands_for.insert(best->first);
+    EXPECT_GE(static_cast<double>(best->second) / part.indices.size(), min_share) << part.id;
+  }
+  EXPECT_EQ(stands_for, (std::set<int>{1, 2}));
 }
 
 // The strip in the clay's colour mixed with grey, as a fracture face shows the fired core: 0.85 ×
@@ -309,14 +355,23 @@ TEST(UnseenWall, AStripOfTheClayMixedWithGreyIsPartOfTheSherd) {
 // The same strip in another clay's colour (hue (g/r, b/r) (0.93, 0.40), 0.25 off the sherd's
 // clay-to-grey line): a sherd of its own beside it.
 TEST(UnseenWall, AStripOfAnotherClayStaysApart) {
-  const auto scene = sherd_and_strip(sherd::Rgb8{150, 140, 60});
-  const auto sherds = segment_scene(scene);
-  ASSERT_EQ(sherds.size(), 2u);
-  for (const auto& part : sherds) {
-    std::set<int> labels;
-    for (auto i : part.indices) labels.insert(scene.truth[i]);
-    EXPECT_EQ(labels.size(), 1u) << part.id;
-  }
+  expect_two_sherds(sherd_and_strip(sherd::Rgb8{150, 140, 60}), 1.0);
+}
+
+// Two sherds at 5 mm side by side, 40 × 40 mm and 28 × 40 mm, along a 40 mm contact, far wider
+// than the erosion cuts (one core over both). Sherd 1's clay (180, 120, 80), hue (g/r, b/r)
+// (0.667, 0.444); sherd 2's (170, 121, 82), hue (0.712, 0.482): 0.056 along sherd 1's
+// clay-to-grey line and 0.019 across it (computed by hand), as the second clays of
+// bench_segmentation's trays 34, 38, 54, 77. Too far across the line for a fracture face of
+// sherd 1: two sherds. (The earlier rule, one clay within 0.03 of the other's line, left one.)
+TEST(TwoClays, TwoSherdsAlongAWideContactAreSplitByClay) {
+  // The cut follows the contact to within one voxel (0.83 mm): up to 40 × 0.83 mm² of the
+  // other's 1120 mm², 3 %.
+  expect_two_sherds(plate_scene([&](float x, float y) {
+                      if (std::abs(y) > 20 || x < -40 || x > 28) return Cell{};
+                      return x <= 0 ? Cell{1, 5.0f, {180, 120, 80}} : Cell{2, 5.0f, {170, 121, 82}};
+                    }),
+                    0.97);
 }
 
 // PNG header: width and height are the big-endian words at bytes 16 and 20.
