@@ -3,7 +3,7 @@
 //                      [--real DIR] [--overview DIR] [--contact-erosion 5]
 // One JSON line per tray: sherds in truth and found, per-point precision and recall, truth sherds
 // merged with another or split, time. Then a summary line (medians, share of trays with the exact
-// count) and, with --million N, N timings of one ≈ 1 M-point tray (20 sherds, 0.265 mm grid).
+// count, precision and recall pooled over every point of every tray) and, with --million N, N timings of one ≈ 1 M-point tray (20 sherds, 0.265 mm grid).
 //
 // Matching: every found sherd stands for the truth sherd that holds most of its points, every
 // truth sherd is found as the part holding most of its points. Precision = points of found
@@ -34,6 +34,8 @@ namespace {
 struct Score {
   double precision = 0.0, recall = 0.0;
   int merged = 0, split = 0;
+  // The point counts behind precision and recall, for figures pooled over all trays.
+  std::size_t in_parts = 0, right_in_parts = 0, truth_total = 0, recalled = 0;
 };
 
 Score score(const sim::Tray& tray, const seg::Result& result) {
@@ -75,6 +77,8 @@ Score score(const sim::Tray& tray, const seg::Result& result) {
   }
   s.precision = in_parts > 0 ? static_cast<double>(right_in_parts) / in_parts : 0.0;
   s.recall = truth_total > 0 ? static_cast<double>(recalled) / truth_total : 0.0;
+  s.in_parts = in_parts, s.right_in_parts = right_in_parts;
+  s.truth_total = truth_total, s.recalled = recalled;
   return s;
 }
 
@@ -143,6 +147,7 @@ int main(int argc, char** argv) {
 
   std::vector<double> precisions, recalls, times;
   int exact = 0, merged = 0, split = 0;
+  Score pooled;  // point counts summed over the trays
   for (int n = 0; n < trays; ++n) {
     sim::TraySpec spec =
         sim::bench_tray_spec(seed + static_cast<std::uint64_t>(n),
@@ -163,6 +168,8 @@ int main(int argc, char** argv) {
     exact += count_exact;
     merged += s.merged;
     split += s.split;
+    pooled.in_parts += s.in_parts, pooled.right_in_parts += s.right_in_parts;
+    pooled.truth_total += s.truth_total, pooled.recalled += s.recalled;
     precisions.push_back(s.precision);
     recalls.push_back(s.recall);
     times.push_back(ms);
@@ -192,6 +199,10 @@ int main(int argc, char** argv) {
                                 {"precision_min", sherd::bench::quantile(precisions, 0.0)},
                                 {"recall_median", sherd::bench::median(recalls)},
                                 {"recall_min", sherd::bench::quantile(recalls, 0.0)},
+                                {"precision_pooled", static_cast<double>(pooled.right_in_parts) /
+                                                         std::max<std::size_t>(pooled.in_parts, 1)},
+                                {"recall_pooled", static_cast<double>(pooled.recalled) /
+                                                      std::max<std::size_t>(pooled.truth_total, 1)},
                                 {"merged_sherds", merged},
                                 {"split_sherds", split},
                                 {"time_ms_median", sherd::bench::median(times)},

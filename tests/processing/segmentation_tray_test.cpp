@@ -278,6 +278,18 @@ TEST_P(TwoClaysTray, EachClayIsASherdOfItsOwn) { expect_bench_tray_found(1, GetP
 
 INSTANTIATE_TEST_SUITE_P(BenchTrays, TwoClaysTray, ::testing::Values(34u, 38u, 54u, 77u));
 
+// Trays of `bench_segmentation --seed 1` in which the watershed handed a strip of one sherd,
+// mostly its fracture face behind a step, to the sherd it touches (truth sherd 14 of tray 2:
+// 17 % of it in sherd 2's part; sherd 19 of tray 97: 32 % in sherd 3's): the strip, no face of
+// its part's clay but one of its own sherd's, goes back by colour.
+class FaceStripTray : public ::testing::TestWithParam<std::uint64_t> {};
+
+TEST_P(FaceStripTray, TheStripGoesBackToItsSherd) {
+  expect_bench_tray_found(1, GetParam(), 0.9, 0.9);
+}
+
+INSTANTIATE_TEST_SUITE_P(BenchTrays, FaceStripTray, ::testing::Values(2u, 97u));
+
 // A black plate seen from above every 0.5 mm, x from −50 to 30 mm, y from −40 to 40 mm, with
 // what `cell` puts at (x, y): truth label (0 plate), height and colour.
 struct PlateScene {
