@@ -683,7 +683,10 @@ constexpr float kFaceCone = 0.15f;
 constexpr float kFaceMaxAcross = 0.03f;
 
 // Peaks of the histogram of hues `h` (bins of kHueBin, Gaussian-smoothed), as hues. The histogram
-// spans the central 99 % of the hues on each axis: a few voxels of odd colour must not make it huge.
+// spans the central 99 % of the hues on each axis, and at most kHueMaxBins bins from its low end:
+// a few voxels of odd colour, or a part of very little red (hues far above 1), must not make it
+// huge; fired clays lie between about 0.3 and 1.
+constexpr int kHueMaxBins = 512;
 std::vector<Eigen::Vector2f> hue_peaks(const std::vector<Eigen::Vector2f>& h) {
   auto range = [&](int axis) {
     std::vector<float> values(h.size());
@@ -694,7 +697,7 @@ std::vector<Eigen::Vector2f> hue_peaks(const std::vector<Eigen::Vector2f>& h) {
       return *it;
     };
     const float low = at(0.005);
-    return std::pair(low, at(0.995));
+    return std::pair(low, std::min(at(0.995), low + (kHueMaxBins - 1) * kHueBin));
   };
   const auto [x0, x1] = range(0);
   const auto [y0, y1] = range(1);
