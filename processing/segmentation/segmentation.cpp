@@ -685,7 +685,9 @@ constexpr float kFaceMaxAcross = 0.03f;
 // Peaks of the histogram of hues `h` (bins of kHueBin, Gaussian-smoothed), as hues. The histogram
 // spans the central 99 % of the hues on each axis, and at most kHueMaxBins bins from its low end:
 // a few voxels of odd colour, or a part of very little red (hues far above 1), must not make it
-// huge; fired clays lie between about 0.3 and 1.
+// huge; fired clays lie between about 0.3 and 1. Measured on the test of a clay sherd against a
+// blue object (TwoClays.ASherdAndABlueObjectTouchingAreTwo): unbounded 7.3 s and 1.5 GB resident,
+// bounded 0.08 s and 73 MB, the same two sherds.
 constexpr int kHueMaxBins = 512;
 std::vector<Eigen::Vector2f> hue_peaks(const std::vector<Eigen::Vector2f>& h) {
   auto range = [&](int axis) {

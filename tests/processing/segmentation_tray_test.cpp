@@ -357,7 +357,11 @@ void expect_two_sherds(const PlateScene& scene, double min_share) {
 // (0.6 × clay + 0.4 × grey 100) of the sherd's (180, 120, 80): one sherd of all their points.
 TEST(UnseenWall, AStripOfTheClayMixedWithGreyIsPartOfTheSherd) {
   const auto scene = sherd_and_strip(sherd::Rgb8{126, 95, 75});
-  expect_two_sherds(scene, 0.97);
+  const auto sherds = segment_scene(scene);
+  ASSERT_EQ(sherds.size(), 1u);
+  std::size_t truth_points = 0;
+  for (int label : scene.truth) truth_points += label != 0;
+  EXPECT_EQ(sherds[0].indices.size(), truth_points);
 }
 
 // The same strip in another clay's colour (hue (g/r, b/r) (0.93, 0.40), 0.25 off the sherd's
@@ -383,11 +387,10 @@ TEST(TwoClays, TwoSherdsAlongAWideContactAreSplitByClay) {
 }
 
 // A clay sherd against a blue object along a wide contact: the blue's hue (g/r, b/r) is
-// (20, 100) against the clay's (0.67, 0.44). A histogram over that whole span at 0.004 would
-// take 4 800 × 25 000 bins (0.5 GB a copy, three copies); the colour split bounds it
-// (kHueMaxBins), and the blue, beyond the bounded histogram, still goes with the peak nearest
-// it, which is no face of the clay: two sherds.
-TEST(TwoClays, AHueFarOutsideAnyClayDoesNotBlowUpTheHistogram) {
+// (20, 100) against the clay's (0.67, 0.44), far beyond the hue histogram's bounded span
+// (kHueMaxBins). Its voxels still go with the histogram peak nearest them, which is no face of
+// the clay: two sherds.
+TEST(TwoClays, ASherdAndABlueObjectTouchingAreTwo) {
   const PlateScene scene = plate_scene([&](float x, float y) {
     if (std::abs(y) > 20 || x < -40 || x > 28) return Cell{};
     return x <= 0 ? Cell{1, 5.0f, {180, 120, 80}} : Cell{2, 5.0f, {2, 40, 200}};
