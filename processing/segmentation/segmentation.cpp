@@ -306,6 +306,44 @@ void flood_from_cores(const Graph& near, const std::vector<std::uint32_t>& clust
   }
 }
 
+// Voxels flattened onto the plate, for searches in the top view: found[k] of a search is voxel
+// voxel_at[found[k]] (of part part_of[that voxel] when built from parts).
+struct TopView {
+  TopView(const std::vector<Vec3f>& centres, std::vector<std::uint32_t> voxels)
+      : voxel_at(std::move(voxels)) {
+    build(centres);
+  }
+  // The voxels of the parts marked in `chosen`.
+  TopView(const std::vector<std::vector<std::uint32_t>>& parts, const std::vector<Vec3f>& centres,
+          const std::vector<std::uint8_t>& chosen)
+      : part_of(centres.size(), -1) {
+    for (std::size_t p = 0; p < parts.size(); ++p) {
+      if (!chosen[p]) continue;
+      for (auto v : parts[p]) part_of[v] = static_cast<int>(p), voxel_at.push_back(v);
+    }
+    build(centres);
+  }
+  bool empty() const { return voxel_at.empty(); }
+  // Voxels within `radius` of `centre` in the top view, into `found` (indices into voxel_at).
+  void search(const Vec3f& centre, double radius, pcl::Indices& found) {
+    tree_.radiusSearch(pcl::PointXYZ(centre.x(), centre.y(), 0.0f), radius, found, distances_);
+  }
+
+  std::vector<std::uint32_t> voxel_at;
+  std::vector<int> part_of;
+
+ private:
+  void build(const std::vector<Vec3f>& centres) {
+    auto flat = std::make_shared<pcl::PointCloud<pcl::PointXYZ>>();
+    flat->reserve(voxel_at.size());
+    for (auto v : voxel_at) flat->push_back({centres[v].x(), centres[v].y(), 0.0f});
+    if (!flat->empty()) tree_.setInputCloud(flat);
+  }
+
+  pcl::search::KdTree<pcl::PointXYZ> tree_{false};  // unsorted results
+  std::vector<float> distances_;
+};
+
 // Two parts of a cluster that meet only across a step — side by side in the top view, apart in
 // 3-D — are the two levels of one sherd (a ring foot's recess, a lip: the wall between them is
 // never seen from above) when, together: the step is a real one (its 10th percentile height at
@@ -348,20 +386,14 @@ std::vector<std::pair<int, int>> levels_of_one_sherd(
   }
   // Step pairs: neighbours in the top view (flattened onto the plate) that are not
   // neighbours in 3-D, with their difference in height.
-  auto flat = std::make_shared<pcl::PointCloud<pcl::PointXYZ>>();
-  flat->reserve(among.size());
-  for (auto v : among) flat->push_back({centres[v].x(), centres[v].y(), 0.0f});
-  pcl::search::KdTree<pcl::PointXYZ> tree(false);
-  tree.setInputCloud(flat);
+  TopView top(centres, among);
   pcl::Indices found;
-  std::vector<float> distances;
   const float radius2 = static_cast<float>(radius * radius);
   std::vector<std::vector<std::vector<float>>> steps(parts, std::vector<std::vector<float>>(parts));
-  for (std::size_t k = 0; k < among.size(); ++k) {
-    const auto v = among[k];
-    tree.radiusSearch((*flat)[k], radius, found, distances);
+  for (auto v : among) {
+    top.search(centres[v], radius, found);
     for (auto f : found) {
-      const auto n = among[f];
+      const auto n = top.voxel_at[f];
       if (tag[n] <= tag[v] || (centres[n] - centres[v]).squaredNorm() <= radius2) continue;
       steps[tag[v]][tag[n]].push_back(std::abs(centres[n].z() - centres[v].z()));
     }
@@ -530,36 +562,6 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
   return parts;
 }
 
-// The voxels of some parts flattened onto the plate, for searches in the top view: found[k] of
-// a search is voxel voxel_at[found[k]] of part part_of[that voxel].
-struct TopView {
-  TopView(const std::vector<std::vector<std::uint32_t>>& parts, const std::vector<Vec3f>& centres,
-          const std::vector<std::uint8_t>& chosen)
-      : part_of(centres.size(), -1) {
-    auto flat = std::make_shared<pcl::PointCloud<pcl::PointXYZ>>();
-    for (std::size_t p = 0; p < parts.size(); ++p) {
-      if (!chosen[p]) continue;
-      for (auto v : parts[p]) {
-        part_of[v] = static_cast<int>(p);
-        flat->push_back({centres[v].x(), centres[v].y(), 0.0f});
-        voxel_at.push_back(v);
-      }
-    }
-    if (!flat->empty()) tree.setInputCloud(flat);
-  }
-  bool empty() const { return voxel_at.empty(); }
-  // Voxels within `radius` of `centre` in the top view, into `found` (indices into voxel_at).
-  void search(const Vec3f& centre, double radius, pcl::Indices& found) {
-    tree.radiusSearch(pcl::PointXYZ(centre.x(), centre.y(), 0.0f), radius, found, distances_);
-  }
-
-  pcl::search::KdTree<pcl::PointXYZ> tree{false};  // unsorted results
-  std::vector<std::uint32_t> voxel_at;
-  std::vector<int> part_of;
-
- private:
-  std::vector<float> distances_;
-};
 
 // A narrow piece of a sherd cut off from the rest by a wall too steep to be seen from above: the
 // raised edge of a sherd leaning on another (its fracture face, seen from above as a strip as
