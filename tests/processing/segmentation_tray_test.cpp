@@ -288,6 +288,22 @@ TEST_P(FaceStripTray, TheStripGoesBackToItsSherd) {
 
 INSTANTIATE_TEST_SUITE_P(BenchTrays, FaceStripTray, ::testing::Values(2u, 97u));
 
+// Trays of bench_segmentation in which the fracture face of a sherd — along its edge, leaning on
+// another (truth sherd 4 of seed 1's tray 32: 21 % of it), or a level behind a step (sherd 3 of
+// seed 7001's tray 7004: 25 %) — came out as a part with a core of its own, a sherd too many:
+// narrow, greyer than the sherd's surface and on its clay's line to grey, it joins the surface.
+// Parameters: (first seed of the bench run, tray).
+class FractureFacePartTray
+    : public ::testing::TestWithParam<std::pair<std::uint64_t, std::uint64_t>> {};
+
+TEST_P(FractureFacePartTray, TheFaceIsPartOfItsSherd) {
+  expect_bench_tray_found(GetParam().first, GetParam().second, 0.9, 0.9);
+}
+
+INSTANTIATE_TEST_SUITE_P(BenchTrays, FractureFacePartTray,
+                         ::testing::Values(std::pair<std::uint64_t, std::uint64_t>{1, 32},
+                                           std::pair<std::uint64_t, std::uint64_t>{7001, 7004}));
+
 // A black plate seen from above every 0.5 mm, x from −50 to 30 mm, y from −40 to 40 mm, with
 // what `cell` puts at (x, y): truth label (0 plate), height and colour.
 struct PlateScene {
