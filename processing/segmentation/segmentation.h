@@ -42,7 +42,9 @@ struct Params {
   // sherd. Measured on bench_segmentation (100 trays, seeds 1 / 2 / 1001), exact counts
   // 91 / 91 / 87 % without this, 92 / 92 / 91 % with 450 mm² (merged sherds 8 / 8 / 6 →
   // 5 / 5 / 2); 300 mm² 86 / 86 / 87 %, 400 and 500 mm² as 450 within one tray. Parts rightly
-  // joined covered up to 390 mm², narrow sherds wrongly joined from 440 mm².
+  // joined covered up to 390 mm², narrow sherds wrongly joined from 440 mm². Only beside a
+  // wider sherd (a neighbouring core of 80 mm² or more): beside another small core, the two
+  // are one narrow sherd the erosion cut in two.
   double contact_own_basin_mm2 = 450.0;
   int min_points = 400;
   double min_extent_mm = 12.0;

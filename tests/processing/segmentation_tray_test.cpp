@@ -304,6 +304,21 @@ INSTANTIATE_TEST_SUITE_P(BenchTrays, FractureFacePartTray,
                          ::testing::Values(std::pair<std::uint64_t, std::uint64_t>{1, 32},
                                            std::pair<std::uint64_t, std::uint64_t>{7001, 7004}));
 
+// Trays of bench_segmentation in which the erosion cut one narrow sherd into two small cores,
+// each with a large part (truth sherd 6 of seed 5001's tray 5041: the parts 51 / 49 %; sherd 1 of
+// seed 7001's tray 7072: 58 / 42 %), kept apart as a narrow sherd touching another: beside a
+// part whose core is as small, they are one sherd. Parameters: (first seed of the run, tray).
+class NarrowSherdCutInTwoTray
+    : public ::testing::TestWithParam<std::pair<std::uint64_t, std::uint64_t>> {};
+
+TEST_P(NarrowSherdCutInTwoTray, TheSherdIsFoundWhole) {
+  expect_bench_tray_found(GetParam().first, GetParam().second, 0.9, 0.9);
+}
+
+INSTANTIATE_TEST_SUITE_P(BenchTrays, NarrowSherdCutInTwoTray,
+                         ::testing::Values(std::pair<std::uint64_t, std::uint64_t>{5001, 5041},
+                                           std::pair<std::uint64_t, std::uint64_t>{7001, 7072}));
+
 // A black plate seen from above every 0.5 mm, x from −50 to 30 mm, y from −40 to 40 mm, with
 // what `cell` puts at (x, y): truth label (0 plate), height and colour.
 struct PlateScene {
