@@ -279,14 +279,16 @@ INSTANTIATE_TEST_SUITE_P(BenchTrays, TwoClaysTray, ::testing::Values(34u, 38u, 5
 // Trays of `bench_segmentation --seed 1` in which the watershed handed a strip of one sherd,
 // mostly its fracture face behind a step, to the sherd it touches (truth sherd 14 of tray 2:
 // 17 % of it in sherd 2's part; sherd 19 of tray 97: 32 % in sherd 3's): the strip, no face of
-// its part's clay but one of its own sherd's, goes back by colour.
+// its part's clay but one of its own sherd's, goes back by colour. In tray 74 (sherd 16: 11.5 %
+// in sherd 14's part) the two clays lie so close that the strip is a face of both: it goes back
+// to the part it touches most.
 class FaceStripTray : public ::testing::TestWithParam<std::uint64_t> {};
 
 TEST_P(FaceStripTray, TheStripGoesBackToItsSherd) {
   expect_bench_tray_found(1, GetParam(), 0.9, 0.9);
 }
 
-INSTANTIATE_TEST_SUITE_P(BenchTrays, FaceStripTray, ::testing::Values(2u, 97u));
+INSTANTIATE_TEST_SUITE_P(BenchTrays, FaceStripTray, ::testing::Values(2u, 74u, 97u));
 
 // Trays of bench_segmentation in which the fracture face of a sherd — along its edge, leaning on
 // another (truth sherd 4 of seed 1's tray 32: 21 % of it), or a level behind a step (sherd 3 of
