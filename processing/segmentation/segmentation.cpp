@@ -70,14 +70,16 @@ double largest_side(const std::vector<Vec3f>& points, const std::vector<std::uin
 }
 
 // Fits the dominant plane by RANSAC on a regular subsample, then takes every point within the
-// distance of it. Accepted as support only when its inliers span plane_min_extent_mm.
-void remove_support_plane(const std::vector<Vec3f>& points, const Params& params,
-                          std::vector<std::uint8_t>& keep) {
+// distance of it. Accepted as support only when its inliers span plane_min_extent_mm. Returns
+// the removed points (none when no support was found).
+std::vector<std::uint32_t> remove_support_plane(const std::vector<Vec3f>& points,
+                                                const Params& params,
+                                                std::vector<std::uint8_t>& keep) {
   std::vector<std::uint32_t> candidates;
   for (std::uint32_t i = 0; i < points.size(); ++i) {
     if (keep[i]) candidates.push_back(i);
   }
-  if (candidates.size() < 3) return;
+  if (candidates.size() < 3) return {};
   auto sample = std::make_shared<pcl::PointCloud<pcl::PointXYZ>>();
   const std::size_t stride = (candidates.size() + kPlaneSampleSize - 1) / kPlaneSampleSize;
   for (std::size_t k = 0; k < candidates.size(); k += stride) {
@@ -94,7 +96,7 @@ void remove_support_plane(const std::vector<Vec3f>& points, const Params& params
   pcl::PointIndices sample_inliers;
   pcl::ModelCoefficients plane;
   ransac.segment(sample_inliers, plane);
-  if (sample_inliers.indices.empty() || plane.values.size() != 4) return;
+  if (sample_inliers.indices.empty() || plane.values.size() != 4) return {};
 
   const Vec3f normal(plane.values[0], plane.values[1], plane.values[2]);
   const float offset = plane.values[3];
@@ -102,8 +104,29 @@ void remove_support_plane(const std::vector<Vec3f>& points, const Params& params
   for (auto i : candidates) {
     if (std::abs(normal.dot(points[i]) + offset) <= params.plane_distance_mm) inliers.push_back(i);
   }
-  if (largest_side(points, inliers) < params.plane_min_extent_mm) return;
+  if (largest_side(points, inliers) < params.plane_min_extent_mm) return {};
   for (auto i : inliers) keep[i] = 0;
+  return inliers;
+}
+
+// On a black plate, clay in deep shade comes near black too, while the plate itself is darker
+// still: so black is held to what the plate shows in this scan, kPlateValueMargin × the 99th
+// percentile of its points' value (HSV value, 0–1), below Params::black_max_value. A white plate
+// needs no such bound: shade moves clay away from white. Measured on bench_segmentation (black
+// trays 1013, 1043, 1053, 71, 85): the plate's value 21 (median) and 26 (99th percentile) of
+// 255, the clay points lost as black 33 and more (5th percentile), in deep shade. Pooled recall
+// of seeds 1 / 1001 / 5001 / 7001 0.9976 / 0.9968 / 0.9948 / 0.9977 → 0.9982 / 0.9975 / 0.9956 /
+// 0.9980, precision and counts unchanged.
+constexpr double kPlateValueMargin = 1.2;
+
+double black_bound_of_plate(const std::vector<Rgb8>& colours,
+                            const std::vector<std::uint32_t>& plate, double black_max_value) {
+  std::vector<std::uint8_t> value;
+  value.reserve(plate.size());
+  for (auto i : plate) value.push_back(std::max({colours[i].r, colours[i].g, colours[i].b}));
+  const auto at = value.begin() + static_cast<std::ptrdiff_t>(0.99 * (value.size() - 1));
+  std::nth_element(value.begin(), at, value.end());
+  return std::min(black_max_value, kPlateValueMargin * *at / 255.0);
 }
 
 // The holding frame by its geometry (see Params::frame_height_mm): points below the plinths' top
@@ -1204,7 +1227,7 @@ Result segment(const Mesh& fused, const Params& params) {
 
   std::vector<std::uint8_t> keep(points.size());
   for (std::size_t i = 0; i < points.size(); ++i) keep[i] = points[i].allFinite() ? 1 : 0;
-  remove_support_plane(points, params, keep);
+  const auto plate = remove_support_plane(points, params, keep);
   remove_frame(points, params, keep);
   const bool by_colour =
       params.background != BackgroundColour::None && fused.vertices.has_colours();
@@ -1212,7 +1235,13 @@ Result segment(const Mesh& fused, const Params& params) {
   for (std::uint32_t i = 0; i < points.size(); ++i) {
     if (keep[i] && !outside_volume(points[i], params)) candidates.push_back(i);
   }
-  if (by_colour) candidates = without_background_colour(fused, candidates, params);
+  if (by_colour) {
+    Params colour = params;
+    if (params.background == BackgroundColour::Black && !plate.empty())
+      colour.black_max_value =
+          black_bound_of_plate(fused.vertices.colours, plate, params.black_max_value);
+    candidates = without_background_colour(fused, candidates, colour);
+  }
   result.background_points = points.size() - candidates.size();
 
   for (auto& cluster : clusters(points, fused.vertices.colours, candidates, params)) {

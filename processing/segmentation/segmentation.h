@@ -62,7 +62,10 @@ struct Params {
   // background_max_saturation or chroma (max − min) below background_max_chroma; black means
   // grey with value below black_max_value; white, grey with value above white_min_value.
   // Saturation does not change with shading, so shaded clay stays clay; the chroma bound catches
-  // the near-black cells whose saturation is only 8-bit noise.
+  // the near-black cells whose saturation is only 8-bit noise. On a black background with a
+  // support plane found, black is further held to what that plate shows (1.2 × its points'
+  // 99th-percentile value): clay in deep shade is darker than black_max_value but brighter than
+  // the plate.
   double background_max_saturation = 0.25;
   double background_max_chroma = 0.06;
   double black_max_value = 0.35;

@@ -42,7 +42,9 @@ void add_plate(Scene& scene, seg::BackgroundColour colour, std::mt19937& rng) {
     for (int x = -150; x <= 150; ++x) {
       if (x * x + y * y > 150 * 150) continue;
       const int g = grey(rng);
-      auto channel = [&](int v) { return static_cast<std::uint8_t>(std::clamp(v + tint(rng), 0, 255)); };
+      auto channel = [&](int v) {
+        return static_cast<std::uint8_t>(std::clamp(v + tint(rng), 0, 255));
+      };
       scene.mesh.vertices.points.emplace_back(x, y, 0.0f);
       scene.mesh.vertices.colours.push_back({channel(g), channel(g), channel(g)});
       scene.label.push_back(kBackground);
@@ -58,7 +60,8 @@ void add_patch(Scene& scene, int label, const Vec3f& centre, float width, float 
   for (float s = -width / 2; s <= width / 2; s += kStep) {
     const float angle = s / kRadius;
     for (float h = -height / 2; h <= height / 2; h += kStep) {
-      const Vec3f p = centre + Vec3f(kRadius * std::sin(angle), h, kRadius * (std::cos(angle) - 1.0f));
+      const Vec3f p =
+          centre + Vec3f(kRadius * std::sin(angle), h, kRadius * (std::cos(angle) - 1.0f));
       scene.mesh.vertices.points.push_back(p);
       scene.mesh.vertices.colours.push_back(shade(clay, 0.25 + 0.75 * (s + width / 2) / width));
       scene.label.push_back(label);
@@ -86,13 +89,15 @@ Scene tray(seg::BackgroundColour colour) {
 
 // Each labelled patch must be exactly one sherd, in x order, with per-point precision and
 // recall against the labels.
-void expect_patches_found(const Scene& scene, const seg::Result& result, int patches, double min_recall) {
+void expect_patches_found(const Scene& scene, const seg::Result& result, int patches,
+                          double min_recall) {
   ASSERT_EQ(result.sherds.size(), static_cast<std::size_t>(patches));
   for (int k = 0; k < patches; ++k) {
     const auto& part = result.sherds[k];
     EXPECT_EQ(part.id, fmt::format("s{:02d}", k + 1));
     const auto labelled = std::count(scene.label.begin(), scene.label.end(), k);
-    const auto correct = std::count_if(part.indices.begin(), part.indices.end(), [&](auto i) { return scene.label[i] == k; });
+    const auto correct = std::count_if(part.indices.begin(), part.indices.end(),
+                                       [&](auto i) { return scene.label[i] == k; });
     const double precision = static_cast<double>(correct) / part.indices.size();
     const double recall = static_cast<double>(correct) / labelled;
     EXPECT_EQ(precision, 1.0) << part.id;
@@ -115,7 +120,8 @@ TEST(Segmentation, BlackBackgroundTray) {
   const auto result = seg::segment(scene.mesh, seg::Params{});
   expect_patches_found(scene, result, 4, 1.0);
   expect_debris_rejected(result);
-  EXPECT_EQ(result.background_points, static_cast<std::size_t>(std::count(scene.label.begin(), scene.label.end(), kBackground)));
+  EXPECT_EQ(result.background_points, static_cast<std::size_t>(std::count(
+                                          scene.label.begin(), scene.label.end(), kBackground)));
 }
 
 TEST(Segmentation, WhiteBackgroundTray) {
@@ -136,9 +142,9 @@ TEST(Segmentation, ColourAloneRemovesTheBackgroundButNotShadedClay) {
 }
 
 TEST(Segmentation, BackgroundColouredSpecksOnASherdStayWithIt) {
-  // Patch 0 carries specks (every 7th point) and a line two points (1 mm) wide as dark and grey as the
-  // black plate — a stain, a deeply shaded crack: they lie inside clay-coloured surroundings, so
-  // they are part of the sherd. (A wider dark region would count as background.)
+  // Patch 0 carries specks (every 7th point) and a line two points (1 mm) wide as dark and grey as
+  // the black plate — a stain, a deeply shaded crack: they lie inside clay-coloured surroundings,
+  // so they are part of the sherd. (A wider dark region would count as background.)
   Scene scene = tray(seg::BackgroundColour::Black);
   std::size_t darkened = 0;
   for (std::size_t i = 0; i < scene.label.size(); ++i) {
@@ -166,6 +172,33 @@ TEST(Segmentation, BackgroundColouredHolderTouchingASherdIsRemoved) {
       scene.label.push_back(kBackground);
     }
   }
+  expect_patches_found(scene, seg::segment(scene.mesh, seg::Params{}), 4, 1.0);
+}
+
+TEST(Segmentation, DeeplyShadedClayBrighterThanThePlateStays) {
+  // The plate is darker here (grey 15–25, tint ±4) and a 10 mm band across patch 0 lies in deep
+  // shade, (40, 36, 33): value 0.157 and chroma 7 / 255, black by Params::black_max_value (0.35)
+  // and grey by the chroma bound, a quarter of the patch and wider than any neighbourhood. Black
+  // is held to what this plate shows (1.2 × its 99th-percentile value ≈ 1.2 × 29 / 255 = 0.136),
+  // so the band stays clay; by the fixed bound alone the patch would keep about 3 / 4 of its
+  // points.
+  Scene scene = tray(seg::BackgroundColour::Black);
+  std::mt19937 rng(11);
+  std::uniform_int_distribution<int> grey(15, 25), tint(-4, 4);
+  std::size_t band = 0;
+  for (std::size_t i = 0; i < scene.label.size(); ++i) {
+    auto& colour = scene.mesh.vertices.colours[i];
+    const float x = scene.mesh.vertices.points[i].x();
+    if (scene.label[i] == kBackground) {
+      const int g = grey(rng);
+      auto channel = [&] { return static_cast<std::uint8_t>(g + tint(rng)); };
+      colour = {channel(), channel(), channel()};
+    } else if (scene.label[i] == 0 && x >= -100.0f && x <= -90.0f) {
+      colour = {40, 36, 33};
+      ++band;
+    }
+  }
+  ASSERT_GT(band, 1000u);
   expect_patches_found(scene, seg::segment(scene.mesh, seg::Params{}), 4, 1.0);
 }
 
@@ -201,8 +234,8 @@ TEST(Segmentation, LargeFlatSherdIsNotTakenForTheSupport) {
 
 TEST(Segmentation, SizeFiltersReportTooLargeAndTooNarrow) {
   Scene scene;
-  add_patch(scene, 0, {0, 0, 50}, 40, 30);     // a sherd
-  add_patch(scene, 1, {0, 120, 50}, 8, 6);     // 17 × 13 points, but only 8 mm wide
+  add_patch(scene, 0, {0, 0, 50}, 40, 30);  // a sherd
+  add_patch(scene, 1, {0, 120, 50}, 8, 6);  // 17 × 13 points, but only 8 mm wide
   scene.mesh.vertices.colours.clear();
   seg::Params params;
   params.volume_radius_mm = 0.0;
@@ -213,8 +246,10 @@ TEST(Segmentation, SizeFiltersReportTooLargeAndTooNarrow) {
   ASSERT_EQ(result.rejected.size(), 2u);
   std::map<std::string, std::size_t> by_reason;
   for (const auto& r : result.rejected) by_reason[r.reason.substr(0, 9)] = r.indices.size();
-  EXPECT_EQ(by_reason["too large"], static_cast<std::size_t>(std::count(scene.label.begin(), scene.label.end(), 0)));
-  EXPECT_EQ(by_reason["too small"], static_cast<std::size_t>(std::count(scene.label.begin(), scene.label.end(), 1)));
+  EXPECT_EQ(by_reason["too large"],
+            static_cast<std::size_t>(std::count(scene.label.begin(), scene.label.end(), 0)));
+  EXPECT_EQ(by_reason["too small"],
+            static_cast<std::size_t>(std::count(scene.label.begin(), scene.label.end(), 1)));
 }
 
 TEST(Segmentation, EmptyAndNonFiniteInput) {
@@ -244,7 +279,8 @@ TEST(Segmentation, EmptyAndNonFiniteInput) {
 // camera-aligned box stays under 150 mm, while any table remnant would span ≥ 300 mm.
 TEST(SegmentationRealData, TableSceneMug) {
   const Mesh scene = sherd::io::read_model(
-      std::string(SHERD_SHARED_DATA) + "/pcl-test-clouds/table_scene_mug_stereo_textured.pcd", sherd::io::Units::Metres);
+      std::string(SHERD_SHARED_DATA) + "/pcl-test-clouds/table_scene_mug_stereo_textured.pcd",
+      sherd::io::Units::Metres);
   seg::Params params;
   params.background = seg::BackgroundColour::None;
   params.volume_radius_mm = 1e5;
