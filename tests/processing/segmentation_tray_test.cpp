@@ -7,6 +7,7 @@
 #include <fstream>
 #include <map>
 #include <set>
+#include <string>
 
 #include "processing/segmentation/overview.h"
 #include "processing/segmentation/segmentation.h"
@@ -288,38 +289,37 @@ TEST_P(FaceStripTray, TheStripGoesBackToItsSherd) {
 
 INSTANTIATE_TEST_SUITE_P(BenchTrays, FaceStripTray, ::testing::Values(2u, 74u, 97u));
 
-// Trays of bench_segmentation in which the fracture face of a sherd — along its edge, leaning on
-// another (truth sherd 4 of seed 1's tray 32: 21 % of it), or a level behind a step (sherd 3 of
-// seed 7001's tray 7004: 25 %; sherd 5 of seed 1's tray 61: 44 %) — came out as a part with a
-// core of its own, a sherd too many: narrow, greyer than the sherd's surface and on its clay's
-// line to grey, it joins the surface.
-// Parameters: (first seed of the bench run, tray).
-class FractureFacePartTray
-    : public ::testing::TestWithParam<std::pair<std::uint64_t, std::uint64_t>> {};
+// Trays of bench_segmentation (first seed of the run, tray) in which one sherd came out as two
+// parts, each found whole now:
+// * a fracture face with a core of its own — along the edge of a sherd leaning on another (truth
+//   sherd 4 of seed 1's tray 32: 21 % of it) or a level behind a step (sherd 5 of seed 1's tray
+//   61: 44 %; sherd 3 of seed 7001's tray 7004: 25 %): narrow, greyer than the sherd's surface
+//   and on its clay's line to grey, it joins the surface;
+// * a narrow sherd that the erosion cut into two small cores, each with a large part (sherd 6 of
+//   seed 5001's tray 5041: 51 / 49 %; sherd 1 of seed 7001's tray 7072: 58 / 42 %), kept apart
+//   as a narrow sherd touching another: beside a part whose core is as small, they are one.
+struct TrayOfRun {
+  const char* what;
+  std::uint64_t first;
+  std::uint64_t tray;
+};
 
-TEST_P(FractureFacePartTray, TheFaceIsPartOfItsSherd) {
-  expect_bench_tray_found(GetParam().first, GetParam().second, 0.9, 0.9);
+class SherdInTwoPartsTray : public ::testing::TestWithParam<TrayOfRun> {};
+
+TEST_P(SherdInTwoPartsTray, TheSherdIsFoundWhole) {
+  expect_bench_tray_found(GetParam().first, GetParam().tray, 0.9, 0.9);
 }
 
-INSTANTIATE_TEST_SUITE_P(BenchTrays, FractureFacePartTray,
-                         ::testing::Values(std::pair<std::uint64_t, std::uint64_t>{1, 32},
-                                           std::pair<std::uint64_t, std::uint64_t>{1, 61},
-                                           std::pair<std::uint64_t, std::uint64_t>{7001, 7004}));
-
-// Trays of bench_segmentation in which the erosion cut one narrow sherd into two small cores,
-// each with a large part (truth sherd 6 of seed 5001's tray 5041: the parts 51 / 49 %; sherd 1 of
-// seed 7001's tray 7072: 58 / 42 %), kept apart as a narrow sherd touching another: beside a
-// part whose core is as small, they are one sherd. Parameters: (first seed of the run, tray).
-class NarrowSherdCutInTwoTray
-    : public ::testing::TestWithParam<std::pair<std::uint64_t, std::uint64_t>> {};
-
-TEST_P(NarrowSherdCutInTwoTray, TheSherdIsFoundWhole) {
-  expect_bench_tray_found(GetParam().first, GetParam().second, 0.9, 0.9);
-}
-
-INSTANTIATE_TEST_SUITE_P(BenchTrays, NarrowSherdCutInTwoTray,
-                         ::testing::Values(std::pair<std::uint64_t, std::uint64_t>{5001, 5041},
-                                           std::pair<std::uint64_t, std::uint64_t>{7001, 7072}));
+INSTANTIATE_TEST_SUITE_P(BenchTrays, SherdInTwoPartsTray,
+                         ::testing::Values(TrayOfRun{"FractureFaceOfALeaningSherd", 1, 32},
+                                           TrayOfRun{"FractureFaceLevel", 1, 61},
+                                           TrayOfRun{"FractureFaceLevel", 7001, 7004},
+                                           TrayOfRun{"NarrowSherdCutInTwo", 5001, 5041},
+                                           TrayOfRun{"NarrowSherdCutInTwo", 7001, 7072}),
+                         [](const auto& info) {
+                           return std::string(info.param.what) + "_" +
+                                  std::to_string(info.param.tray);
+                         });
 
 // A black plate seen from above every 0.5 mm, x from −50 to 30 mm, y from −40 to 40 mm, with
 // what `cell` puts at (x, y): truth label (0 plate), height and colour.
