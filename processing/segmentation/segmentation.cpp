@@ -1078,8 +1078,8 @@ std::vector<std::vector<std::uint32_t>> faces_to_their_clay(
     }
     for (const auto& region : components(near, part, mark)) {
       if (region.size() < min_region) continue;
-      std::map<int, std::size_t>
-          touching;  // neighbour pairs with voxels outside the faces, by part
+      // Neighbour pairs with voxels outside the faces, by their part.
+      std::map<int, std::size_t> touching;
       for (auto v : region) {
         for (auto n : near[v]) touching[owner[n]] += !mark[n];
       }
