@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <ostream>
 #include <set>
 #include <string>
 
@@ -303,6 +304,11 @@ struct TrayOfRun {
   std::uint64_t first;
   std::uint64_t tray;
 };
+
+// How GoogleTest names a case in its output (instead of the struct's bytes).
+void PrintTo(const TrayOfRun& tray, std::ostream* out) {
+  *out << tray.what << ": tray " << tray.tray << " of the run from seed " << tray.first;
+}
 
 class SherdInTwoPartsTray : public ::testing::TestWithParam<TrayOfRun> {};
 
