@@ -397,6 +397,12 @@ Eigen::Vector2f hue(const Vec3f& rgb) {
   return Eigen::Vector2f(rgb.y(), rgb.z()) / std::max(rgb.x(), 1.0f);
 }
 
+// Hue `h` lies from hue `clay` towards grey's (1, 1): the clay mixed with grey, as a fracture
+// face shows it.
+bool greyer(const Eigen::Vector2f& h, const Eigen::Vector2f& clay) {
+  return (h - clay).dot(Eigen::Vector2f(1.0f, 1.0f) - clay) > 0.0f;
+}
+
 // How far the hue of `face` lies from the hues of `clay` mixed with grey (the segment from
 // hue(clay) to grey's (1, 1), a little beyond clay's end for noise).
 float off_clay_line(const Vec3f& clay, const Vec3f& face) {
@@ -429,9 +435,7 @@ constexpr double kLevelFaceMaxOffClayLine = 0.02;
 
 bool fracture_face_of(const Vec3f& clay_rgb, const Vec3f& face_rgb, double face_width_mm,
                       double max_off_clay_line) {
-  const Eigen::Vector2f clay = hue(clay_rgb);
-  return face_width_mm <= kFaceMaxWidthMm &&
-         (hue(face_rgb) - clay).dot(Eigen::Vector2f(1.0f, 1.0f) - clay) > 0.0f &&
+  return face_width_mm <= kFaceMaxWidthMm && greyer(hue(face_rgb), hue(clay_rgb)) &&
          off_clay_line(clay_rgb, face_rgb) < max_off_clay_line;
 }
 
@@ -445,17 +449,16 @@ bool of_one_clay(const Vec3f& a_rgb, double a_width_mm, const Vec3f& b_rgb, doub
 }
 
 // Pairs (a, b) of parts (by `tag`; core_rgb.size() of them) that are one sherd's levels, judged
-// by their border among the voxels `among` and by the colours of their cores (`core_rgb`, sums).
+// by their border among the voxels `among` and by the colours of their cores (`core_rgb`, sums)
+// and their widths (`width`, mm).
 std::vector<std::pair<int, int>> levels_of_one_sherd(
     const Graph& near, const std::vector<Vec3f>& centres, const std::vector<std::uint32_t>& among,
-    const std::vector<int>& tag, const std::vector<float>& depth,
+    const std::vector<int>& tag, const std::vector<double>& width,
     const std::vector<Vec3f>& core_rgb, double radius) {
   const int parts = static_cast<int>(core_rgb.size());
   std::vector<std::vector<std::size_t>> contacts(parts, std::vector<std::size_t>(parts, 0));
-  std::vector<float> deepest(parts, 0.0f);
   for (auto v : among) {
     for (auto n : near[v]) contacts[tag[v]][tag[n]] += tag[n] > tag[v];
-    deepest[tag[v]] = std::max(deepest[tag[v]], depth[v]);
   }
   // Step pairs: neighbours in the top view (flattened onto the plate) that are not
   // neighbours in 3-D, with their difference in height.
@@ -485,9 +488,8 @@ std::vector<std::pair<int, int>> levels_of_one_sherd(
       const bool wall = q10 >= kLevelStepMinMm && q90 <= kLevelStepMaxMm &&
                         q90 <= kLevelStepMaxSpread * q10 &&
                         contacts[a][b] <= kLevelMaxContactShare * heights.size();
-      const bool one_clay =
-          of_one_clay(core_rgb[a], 2.0 * deepest[a], core_rgb[b], 2.0 * deepest[b],
-                      kLevelMaxHueDifference, kLevelFaceMaxOffClayLine);
+      const bool one_clay = of_one_clay(core_rgb[a], width[a], core_rgb[b], width[b],
+                                        kLevelMaxHueDifference, kLevelFaceMaxOffClayLine);
       if (wall && one_clay) levels.emplace_back(a, b);
     }
   }
@@ -500,7 +502,7 @@ std::vector<std::pair<int, int>> levels_of_one_sherd(
 // kNoNeckMaxHueDifference). Where two sherds touch, the contact is a neck shorter than either is
 // wide. The border's length is the area of the bands along it (voxels of either part within
 // `radius` of the other, about `radius` wide each) over 2 × radius; a part's width is twice its
-// deepest voxel's distance from the cluster's boundary (`depth`). Measured on bench_segmentation
+// deepest voxel's distance from the cluster's boundary. Measured on bench_segmentation
 // (100 trays each of seeds 1, 2, 1001, pairs of parts left apart by the rules above): one
 // sherd's parts (trays 1026, 1059, 1088; 92 of seeds 1 and 2) had borders 0.87–2.06 × the
 // narrower's width and core hues 0.001–0.005 apart; different sherds of hues closer than 0.02,
@@ -510,18 +512,16 @@ std::vector<std::pair<int, int>> levels_of_one_sherd(
 constexpr double kNoNeckMinBorderShare = 0.7;
 constexpr double kNoNeckMaxHueDifference = 0.008;
 
-// Pairs (a, b) of parts (by `tag`) with no neck between them, among the voxels `among` of the
-// parts marked in `judged`.
+// Pairs (a, b) of parts (by `tag`, widths `width` in mm) with no neck between them, among the
+// voxels `among` of the parts marked in `judged`.
 std::vector<std::pair<int, int>> parts_without_neck(
     const Graph& near, const std::vector<std::uint32_t>& among, const std::vector<int>& tag,
-    const std::vector<float>& depth, const std::vector<std::uint8_t>& judged,
+    const std::vector<double>& width, const std::vector<std::uint8_t>& judged,
     const std::vector<Vec3f>& core_rgb, double radius, double leaf) {
   const int parts = static_cast<int>(core_rgb.size());
-  std::vector<float> deepest(parts, 0.0f);
   std::vector<std::vector<std::size_t>> band(parts, std::vector<std::size_t>(parts, 0));
   std::vector<int> beside;
   for (auto v : among) {
-    deepest[tag[v]] = std::max(deepest[tag[v]], depth[v]);
     beside.clear();
     for (auto n : near[v]) {
       if (tag[n] != tag[v] && judged[tag[n]] &&
@@ -535,10 +535,9 @@ std::vector<std::pair<int, int>> parts_without_neck(
     for (int b = a + 1; b < parts; ++b) {
       if (!judged[a] || !judged[b] || band[a][b] == 0) continue;
       const double border_mm = (band[a][b] + band[b][a]) * leaf * leaf / (2.0 * radius);
-      const double narrower_mm = 2.0 * std::min(deepest[a], deepest[b]);
-      const bool one_clay =
-          of_one_clay(core_rgb[a], 2.0 * deepest[a], core_rgb[b], 2.0 * deepest[b],
-                      kNoNeckMaxHueDifference, kFaceMaxOffClayLine);
+      const double narrower_mm = std::min(width[a], width[b]);
+      const bool one_clay = of_one_clay(core_rgb[a], width[a], core_rgb[b], width[b],
+                                        kNoNeckMaxHueDifference, kFaceMaxOffClayLine);
       if (border_mm >= kNoNeckMinBorderShare * narrower_mm && one_clay) pairs.emplace_back(a, b);
     }
   }
@@ -636,13 +635,16 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
     std::vector<Vec3f> core_rgb(cores, Vec3f::Zero());
     for (auto [v, c] : seeds) core_rgb[c] += voxel_rgb[v];
     std::vector<std::uint32_t> judged;
+    std::vector<double> width(cores, 0.0);  // twice the deepest voxel's distance from the boundary
     for (auto v : cluster) {
-      if (sherd_sized[tag[v]]) judged.push_back(v);
+      if (!sherd_sized[tag[v]]) continue;
+      judged.push_back(v);
+      width[tag[v]] = std::max(width[tag[v]], 2.0 * distance[v]);
     }
-    for (auto [a, b] : levels_of_one_sherd(near, centres, judged, tag, distance, core_rgb, radius))
+    for (auto [a, b] : levels_of_one_sherd(near, centres, judged, tag, width, core_rgb, radius))
       group[root(a)] = root(b);
-    for (auto [a, b] : parts_without_neck(near, judged, tag, distance, sherd_sized, core_rgb,
-                                          radius, radius / kVoxelsPerTolerance))
+    for (auto [a, b] : parts_without_neck(near, judged, tag, width, sherd_sized, core_rgb, radius,
+                                          radius / kVoxelsPerTolerance))
       group[root(a)] = root(b);
   }
   std::vector<int> part_of(cores, -1);
@@ -1032,10 +1034,6 @@ std::vector<std::vector<std::uint32_t>> faces_to_their_clay(
   if (top.empty()) return parts;
   pcl::Indices found;
   std::vector<int> moved_to(centres.size(), -1);
-  std::vector<int> owner(centres.size(), -1);  // every voxel's part
-  for (int p = 0; p < n_parts; ++p) {
-    for (auto v : parts[p]) owner[v] = p;
-  }
   auto region_hue = [&](const std::vector<std::uint32_t>& region) {
     Vec3f sum = Vec3f::Zero();
     for (auto v : region) sum += voxel_rgb[v];
@@ -1064,8 +1062,7 @@ std::vector<std::vector<std::uint32_t>> faces_to_their_clay(
         const float offset = face_offset_of(clay[q], h);
         if (offset < best_offset) best = q, best_offset = offset;
       }
-      const bool greyer = (h - clay[p]).dot(Eigen::Vector2f(1.0f, 1.0f) - clay[p]) > 0.0f;
-      if (best >= 0 && greyer) {
+      if (best >= 0 && greyer(h, clay[p])) {
         for (auto v : region) moved_to[v] = best;
       }
     }
@@ -1078,17 +1075,16 @@ std::vector<std::vector<std::uint32_t>> faces_to_their_clay(
     }
     for (const auto& region : components(near, part, mark)) {
       if (region.size() < min_region) continue;
-      // Neighbour pairs with voxels outside the faces, by their part.
+      // Neighbour pairs with voxels outside the faces, by their part (−1: an uncoloured one).
       std::map<int, std::size_t> touching;
       for (auto v : region) {
-        for (auto n : near[v]) touching[owner[n]] += !mark[n];
+        for (auto n : near[v]) touching[top.part_of[n]] += !mark[n];
       }
       const Eigen::Vector2f h = region_hue(region);
       int best = -1;
       std::size_t most = touching[p];
       for (auto [q, pairs] : touching) {
-        if (q >= 0 && q != p && coloured[q] && pairs > most &&
-            std::isfinite(face_offset_of(clay[q], h)))
+        if (q >= 0 && q != p && pairs > most && std::isfinite(face_offset_of(clay[q], h)))
           best = q, most = pairs;
       }
       if (best >= 0) {
