@@ -276,6 +276,14 @@ TEST_P(TwoClaysTray, EachClayIsASherdOfItsOwn) { expect_bench_tray_found(1, GetP
 
 INSTANTIATE_TEST_SUITE_P(BenchTrays, TwoClaysTray, ::testing::Values(34u, 38u, 54u, 77u));
 
+// A tray of bench_segmentation (seed 5001's tray 5021) in which one sherd's clay lies near the
+// line from its neighbour's clay to grey (0.005 off), so the colour split took it for that
+// neighbour's fracture face: the two came out as one (precision 0.85). A region 32 mm wide is no
+// face.
+TEST(TwoClays, ASherdNearAnotherClaysLineToGreyIsNoFace) {
+  expect_bench_tray_found(5001, 5021, 0.9, 0.9);
+}
+
 // Trays of `bench_segmentation --seed 1` in which the watershed handed a strip of one sherd,
 // mostly its fracture face behind a step, to the sherd it touches (truth sherd 14 of tray 2:
 // 17 % of it in sherd 2's part; sherd 19 of tray 97: 32 % in sherd 3's): the strip, no face of
