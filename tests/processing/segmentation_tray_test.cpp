@@ -304,6 +304,8 @@ INSTANTIATE_TEST_SUITE_P(BenchTrays, FaceStripTray, ::testing::Values(2u, 74u, 9
 //   sherd 4 of seed 1's tray 32: 21 % of it) or a level behind a step (sherd 5 of seed 1's tray
 //   61: 44 %; sherd 3 of seed 7001's tray 7004: 25 %): narrow, greyer than the sherd's surface
 //   and on its clay's line to grey, it joins the surface;
+// * two levels of one sherd whose step varies along the border a little more than the levels'
+//   test allowed (sherd 5 of seed 5001's tray 5075: 28 %, step q90 / q10 1.604, bound 1.6);
 // * a narrow sherd that the erosion cut into two small cores, each with a large part (sherd 6 of
 //   seed 5001's tray 5041: 51 / 49 %; sherd 1 of seed 7001's tray 7072: 58 / 42 %), kept apart
 //   as a narrow sherd touching another: beside a part whose core is as small, they are one.
@@ -328,6 +330,7 @@ INSTANTIATE_TEST_SUITE_P(BenchTrays, SherdInTwoPartsTray,
                          ::testing::Values(TrayOfRun{"FractureFaceOfALeaningSherd", 1, 32},
                                            TrayOfRun{"FractureFaceLevel", 1, 61},
                                            TrayOfRun{"FractureFaceLevel", 7001, 7004},
+                                           TrayOfRun{"LevelsOfAnUnevenStep", 5001, 5075},
                                            TrayOfRun{"NarrowSherdCutInTwo", 5001, 5041},
                                            TrayOfRun{"NarrowSherdCutInTwo", 7001, 7072}),
                          [](const auto& info) {
