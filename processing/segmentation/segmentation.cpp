@@ -798,6 +798,11 @@ std::vector<std::vector<std::uint32_t>> join_across_unseen_walls(
 // merged two sherds (trays 34, 38, 54, 77 of seed 1) 0.016–0.050 across, 0.28–0.68 × along. The
 // earlier rule (two groups by 2-means, off each other's line by 0.03) split the fracture faces
 // from the clays and left all four merged. Merged sherds 4 / 2 / 2 → 0 / 0 / 1.
+// kFaceMaxAcross was 0.03 until the six seeds (1 / 1001 / 5001 / 7001 / 9001 / 11001): of the
+// face peaks whose largest region covers 300 voxels or more, one sherd's faces lay at most
+// 0.0097 across, other sherds taken for faces 0.018–0.028 (9097 merged; 9062, 11098). At 0.015
+// 9097 is no longer merged and 4 strips (7065, 9048, 11039, 11098) no longer split; 48 trays
+// moved by 0.1–0.3 % of precision and recall, either way.
 constexpr double kClayMinMm2 = 300.0;
 // Hue histogram bin and smoothing (Gaussian sigma, in bins): a voxel's hue, averaged over its
 // neighbourhood, scatters by about 0.004 within one clay.
@@ -805,7 +810,7 @@ constexpr float kHueBin = 0.004f;
 constexpr float kHueSmoothBins = 1.5f;
 constexpr float kSameHue = 0.015f;
 constexpr float kFaceCone = 0.15f;
-constexpr float kFaceMaxAcross = 0.03f;
+constexpr float kFaceMaxAcross = 0.015f;
 
 // Peaks of the histogram of hues `h` (bins of kHueBin, Gaussian-smoothed), as hues. The histogram
 // spans the central 99 % of the hues on each axis, and at most kHueMaxBins bins from its low end:

@@ -284,6 +284,13 @@ TEST(TwoClays, ASherdNearAnotherClaysLineToGreyIsNoFace) {
   expect_bench_tray_found(5001, 5021, 0.9, 0.9);
 }
 
+// A tray of bench_segmentation (seed 9001's tray 9097) in which a small sherd lies against a
+// larger one whose line to grey it lies 0.028 off: it was taken for that sherd's fracture face
+// (one sherd's faces lie within 0.01 of the line) and the two came out as one (precision 0.977).
+TEST(TwoClays, ASherdOffAnotherClaysLineToGreyIsNoFace) {
+  expect_bench_tray_found(9001, 9097, 0.9, 0.9);
+}
+
 // Trays of `bench_segmentation --seed 1` in which the watershed handed a strip of one sherd,
 // mostly its fracture face behind a step, to the sherd it touches (truth sherd 14 of tray 2:
 // 17 % of it in sherd 2's part; sherd 19 of tray 97: 32 % in sherd 3's): the strip, no face of
