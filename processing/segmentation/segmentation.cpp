@@ -894,8 +894,9 @@ float face_offset_of(const Eigen::Vector2f& clay, const Eigen::Vector2f& h) {
 }
 
 // Groups the voxels of a part (hues `h`, colour sums voxel_rgb[part[k]]) by clay: every voxel to
-// its nearest hue peak (peaks holding fewer than `min_voxels` dropped, the smallest first), and
-// each peak that is the face of another (see kFaceCone) to the clay whose line it lies nearest.
+// its nearest hue peak (peaks holding fewer than a quarter of `min_region` voxels dropped, the
+// smallest first), and each peak that is the face of another (see kFaceCone) to the clay whose
+// line it lies nearest — unless its largest region, `min_region` or more, is too wide for a face.
 // Returns the number of clays; clay_of[k] is voxel k's, −1 for a mixture of two (see below).
 int clays_of(const std::vector<Eigen::Vector2f>& h, const std::vector<std::uint32_t>& part,
              const Graph& near, const std::vector<Vec3f>& centres, double radius,
@@ -939,9 +940,10 @@ int clays_of(const std::vector<Eigen::Vector2f>& h, const std::vector<std::uint3
   // wide; the second sherd of tray 5021 (merged with its neighbour, 0.005 off its clay's line)
   // 32.2 mm; a single sherd's hue spread in tray 7009 50.9 mm (its "clay" then too small to seed,
   // so no cut). Exact count of seed 5001 95 → 96 %, no other tray changed.
-  std::vector<std::uint8_t> mark(near.size(), 0);
+  std::vector<std::uint8_t> mark;
   for (int p = 0; p < n; ++p) {
     if (is_clay[p] || held[p] < min_region) continue;
+    mark.resize(near.size(), 0);
     for (std::size_t k = 0; k < h.size(); ++k) mark[part[k]] = clay_of[k] == p;
     std::vector<std::uint32_t> largest;
     for (auto& region : components(near, part, mark)) {
