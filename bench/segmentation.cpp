@@ -1,9 +1,12 @@
 // Benchmark: segmentation of simulated trays (simulators/tray.h) against their per-point truth.
-//   bench_segmentation [--trays 100] [--seed 1] [--grid 0.5] [--million 3]
+//   bench_segmentation [--trays 100] [--seed 1[,1001,…]] [--grid 0.5] [--million 3]
 //                      [--real DIR] [--overview DIR] [--contact-erosion 5]
 // One JSON line per tray: sherds in truth and found, per-point precision and recall, truth sherds
-// merged with another or split, time. Then a summary line (medians, share of trays with the exact
-// count, precision and recall pooled over every point of every tray) and, with --million N, N timings of one ≈ 1 M-point tray (20 sherds, 0.265 mm grid).
+// merged with another or split, time. Then a summary line per run of trays (medians, share of
+// trays with the exact count, precision and recall pooled over every point of every tray), with
+// several first seeds an overall line over all runs (a figure chosen on one run is checked on the
+// others: held-out runs), and, with --million N, N timings of one ≈ 1 M-point tray (20 sherds,
+// 0.265 mm grid).
 //
 // Matching: every found sherd stands for the truth sherd that holds most of its points, every
 // truth sherd is found as the part holding most of its points. Precision = points of found
@@ -122,35 +125,32 @@ double time_ms(const std::chrono::steady_clock::time_point& start) {
       .count();
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  CLI::App app{"bench_segmentation: simulated trays segmented against their per-point truth"};
-  int trays = 100, million = 3;
-  std::uint64_t seed = 1;
-  double grid = 0.5;
-  app.add_option("--trays", trays, "number of trays (1 to 20 sherds each)")->capture_default_str();
-  app.add_option("--seed", seed, "seed of the first tray (tray i uses seed + i)")
-      ->capture_default_str();
-  app.add_option("--grid", grid, "point spacing of the trays, mm")->capture_default_str();
-  std::string overview_dir;
-  app.add_option("--overview", overview_dir, "write each tray's overview PNG into this directory");
-  std::string real_dir;
-  app.add_option("--real", real_dir,
-                 "directory of PCL's test clouds (../shared/data/pcl-test-clouds): segment the two "
-                 "table scenes and print what was found");
-  app.add_option("--million", million, "timings of a ≈ 1 M-point tray")->capture_default_str();
-  double erosion = 5.0;
-  app.add_option("--contact-erosion", erosion, "contact_erosion_mm for the trays")
-      ->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
-
+// Figures of one or more runs of trays.
+struct Totals {
   std::vector<double> precisions, recalls, times;
-  int exact = 0, merged = 0, split = 0;
-  Score pooled;  // point counts summed over the trays
+  int trays = 0, exact = 0, merged = 0, split = 0, trays_merged = 0;
+  Score pooled;                    // point counts summed over the trays
+  double least_exact_share = 1.0;  // of the runs added
+
+  void add(const Totals& run) {
+    for (auto [to, from] : {std::pair{&precisions, &run.precisions},
+                            std::pair{&recalls, &run.recalls}, std::pair{&times, &run.times}})
+      to->insert(to->end(), from->begin(), from->end());
+    trays += run.trays, exact += run.exact, merged += run.merged, split += run.split;
+    trays_merged += run.trays_merged;
+    pooled.in_parts += run.pooled.in_parts, pooled.right_in_parts += run.pooled.right_in_parts;
+    pooled.truth_total += run.pooled.truth_total, pooled.recalled += run.pooled.recalled;
+    least_exact_share = std::min(least_exact_share, static_cast<double>(run.exact) / run.trays);
+  }
+};
+
+// `trays` trays from seed `first` (backgrounds alternating, black first), one JSON line each.
+Totals run_trays(std::uint64_t first, int trays, double grid, double erosion,
+                 const std::string& overview_dir) {
+  Totals t;
   for (int n = 0; n < trays; ++n) {
     sim::TraySpec spec =
-        sim::bench_tray_spec(seed + static_cast<std::uint64_t>(n),
+        sim::bench_tray_spec(first + static_cast<std::uint64_t>(n),
                              n % 2 == 0 ? sim::Background::Black : sim::Background::White);
     spec.grid_mm = grid;
     const sim::Tray tray = sim::make_tray(spec);
@@ -164,15 +164,16 @@ int main(int argc, char** argv) {
       seg::write_overview_png(tray.cloud, truth_as_result(tray),
                               dir / fmt::format("tray_{}_truth.png", spec.seed));
     }
-    const bool count_exact = static_cast<int>(result.sherds.size()) == tray.sherds;
-    exact += count_exact;
-    merged += s.merged;
-    split += s.split;
-    pooled.in_parts += s.in_parts, pooled.right_in_parts += s.right_in_parts;
-    pooled.truth_total += s.truth_total, pooled.recalled += s.recalled;
-    precisions.push_back(s.precision);
-    recalls.push_back(s.recall);
-    times.push_back(ms);
+    ++t.trays;
+    t.exact += static_cast<int>(result.sherds.size()) == tray.sherds;
+    t.merged += s.merged;
+    t.trays_merged += s.merged > 0;
+    t.split += s.split;
+    t.pooled.in_parts += s.in_parts, t.pooled.right_in_parts += s.right_in_parts;
+    t.pooled.truth_total += s.truth_total, t.pooled.recalled += s.recalled;
+    t.precisions.push_back(s.precision);
+    t.recalls.push_back(s.recall);
+    t.times.push_back(ms);
     std::cout << nlohmann::json{{"bench", "segmentation"},
                                 {"seed", spec.seed},
                                 {"background", sim::to_string(spec.background)},
@@ -190,29 +191,72 @@ int main(int argc, char** argv) {
                      .dump()
               << std::endl;
   }
-  if (trays > 0) {
-    std::cout << nlohmann::json{{"bench", "segmentation"},
-                                {"summary", true},
-                                {"trays", trays},
-                                {"exact_count_share", static_cast<double>(exact) / trays},
-                                {"precision_median", sherd::bench::median(precisions)},
-                                {"precision_min", sherd::bench::quantile(precisions, 0.0)},
-                                {"recall_median", sherd::bench::median(recalls)},
-                                {"recall_min", sherd::bench::quantile(recalls, 0.0)},
-                                {"precision_pooled", static_cast<double>(pooled.right_in_parts) /
-                                                         std::max<std::size_t>(pooled.in_parts, 1)},
-                                {"recall_pooled", static_cast<double>(pooled.recalled) /
-                                                      std::max<std::size_t>(pooled.truth_total, 1)},
-                                {"merged_sherds", merged},
-                                {"split_sherds", split},
-                                {"time_ms_median", sherd::bench::median(times)},
-                                {"time_ms_p90", sherd::bench::quantile(times, 0.9)}}
-                     .dump()
-              << std::endl;
+  t.least_exact_share = trays > 0 ? static_cast<double>(t.exact) / trays : 1.0;
+  return t;
+}
+
+nlohmann::json summary_line(const Totals& t) {
+  return {{"bench", "segmentation"},
+          {"summary", true},
+          {"trays", t.trays},
+          {"exact_count_share", static_cast<double>(t.exact) / t.trays},
+          {"precision_median", sherd::bench::median(t.precisions)},
+          {"precision_min", sherd::bench::quantile(t.precisions, 0.0)},
+          {"recall_median", sherd::bench::median(t.recalls)},
+          {"recall_min", sherd::bench::quantile(t.recalls, 0.0)},
+          {"precision_pooled", static_cast<double>(t.pooled.right_in_parts) /
+                                   std::max<std::size_t>(t.pooled.in_parts, 1)},
+          {"recall_pooled",
+           static_cast<double>(t.pooled.recalled) / std::max<std::size_t>(t.pooled.truth_total, 1)},
+          {"merged_sherds", t.merged},
+          {"trays_with_a_merge", t.trays_merged},
+          {"split_sherds", t.split},
+          {"time_ms_median", sherd::bench::median(t.times)},
+          {"time_ms_p90", sherd::bench::quantile(t.times, 0.9)}};
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"bench_segmentation: simulated trays segmented against their per-point truth"};
+  int trays = 100, million = 3;
+  std::vector<std::uint64_t> seeds{1};
+  double grid = 0.5;
+  app.add_option("--trays", trays, "number of trays (1 to 20 sherds each) per run")
+      ->capture_default_str();
+  app.add_option("--seed", seeds,
+                 "seed of the first tray of each run, comma-separated (tray i uses seed + i)")
+      ->delimiter(',')
+      ->capture_default_str();
+  app.add_option("--grid", grid, "point spacing of the trays, mm")->capture_default_str();
+  std::string overview_dir;
+  app.add_option("--overview", overview_dir, "write each tray's overview PNG into this directory");
+  std::string real_dir;
+  app.add_option("--real", real_dir,
+                 "directory of PCL's test clouds (../shared/data/pcl-test-clouds): segment the two "
+                 "table scenes and print what was found");
+  app.add_option("--million", million, "timings of a ≈ 1 M-point tray")->capture_default_str();
+  double erosion = 5.0;
+  app.add_option("--contact-erosion", erosion, "contact_erosion_mm for the trays")
+      ->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+
+  Totals overall;
+  for (const std::uint64_t first : seeds) {
+    const Totals run = run_trays(first, trays, grid, erosion, overview_dir);
+    if (trays > 0) std::cout << summary_line(run).dump() << std::endl;
+    overall.add(run);
+  }
+  if (seeds.size() > 1 && trays > 0) {
+    nlohmann::json line = summary_line(overall);
+    line["overall"] = true;
+    line["runs"] = seeds.size();
+    line["exact_count_share_least"] = overall.least_exact_share;
+    std::cout << line.dump() << std::endl;
   }
   if (million > 0) {
     sim::TraySpec spec;
-    spec.seed = seed;
+    spec.seed = seeds.front();
     spec.sherds = sim::kMaxTraySherds;
     spec.grid_mm = 0.265;
     const sim::Tray tray = sim::make_tray(spec);
