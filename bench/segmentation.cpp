@@ -129,24 +129,26 @@ double time_ms(const std::chrono::steady_clock::time_point& start) {
 struct Totals {
   std::vector<double> precisions, recalls, times;
   int trays = 0, exact = 0, merged = 0, split = 0, trays_merged = 0;
-  Score pooled;                    // point counts summed over the trays
-  double least_exact_share = 1.0;  // of the runs added
+  Score pooled;  // point counts summed over the trays
 
-  void add(const Totals& run) {
-    for (auto [to, from] : {std::pair{&precisions, &run.precisions},
-                            std::pair{&recalls, &run.recalls}, std::pair{&times, &run.times}})
-      to->insert(to->end(), from->begin(), from->end());
-    trays += run.trays, exact += run.exact, merged += run.merged, split += run.split;
-    trays_merged += run.trays_merged;
-    pooled.in_parts += run.pooled.in_parts, pooled.right_in_parts += run.pooled.right_in_parts;
-    pooled.truth_total += run.pooled.truth_total, pooled.recalled += run.pooled.recalled;
-    least_exact_share = std::min(least_exact_share, static_cast<double>(run.exact) / run.trays);
+  void add(const Score& s, bool count_exact, double ms) {
+    ++trays;
+    exact += count_exact;
+    merged += s.merged;
+    trays_merged += s.merged > 0;
+    split += s.split;
+    pooled.in_parts += s.in_parts, pooled.right_in_parts += s.right_in_parts;
+    pooled.truth_total += s.truth_total, pooled.recalled += s.recalled;
+    precisions.push_back(s.precision);
+    recalls.push_back(s.recall);
+    times.push_back(ms);
   }
 };
 
-// `trays` trays from seed `first` (backgrounds alternating, black first), one JSON line each.
+// `trays` trays from seed `first` (backgrounds alternating, black first), one JSON line each;
+// each also counts in `overall`.
 Totals run_trays(std::uint64_t first, int trays, double grid, double erosion,
-                 const std::string& overview_dir) {
+                 const std::string& overview_dir, Totals& overall) {
   Totals t;
   for (int n = 0; n < trays; ++n) {
     sim::TraySpec spec =
@@ -164,16 +166,9 @@ Totals run_trays(std::uint64_t first, int trays, double grid, double erosion,
       seg::write_overview_png(tray.cloud, truth_as_result(tray),
                               dir / fmt::format("tray_{}_truth.png", spec.seed));
     }
-    ++t.trays;
-    t.exact += static_cast<int>(result.sherds.size()) == tray.sherds;
-    t.merged += s.merged;
-    t.trays_merged += s.merged > 0;
-    t.split += s.split;
-    t.pooled.in_parts += s.in_parts, t.pooled.right_in_parts += s.right_in_parts;
-    t.pooled.truth_total += s.truth_total, t.pooled.recalled += s.recalled;
-    t.precisions.push_back(s.precision);
-    t.recalls.push_back(s.recall);
-    t.times.push_back(ms);
+    const bool count_exact = static_cast<int>(result.sherds.size()) == tray.sherds;
+    t.add(s, count_exact, ms);
+    overall.add(s, count_exact, ms);
     std::cout << nlohmann::json{{"bench", "segmentation"},
                                 {"seed", spec.seed},
                                 {"background", sim::to_string(spec.background)},
@@ -191,7 +186,6 @@ Totals run_trays(std::uint64_t first, int trays, double grid, double erosion,
                      .dump()
               << std::endl;
   }
-  t.least_exact_share = trays > 0 ? static_cast<double>(t.exact) / trays : 1.0;
   return t;
 }
 
@@ -242,16 +236,18 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
 
   Totals overall;
+  double least_exact_share = 1.0;  // of the runs
   for (const std::uint64_t first : seeds) {
-    const Totals run = run_trays(first, trays, grid, erosion, overview_dir);
-    if (trays > 0) std::cout << summary_line(run).dump() << std::endl;
-    overall.add(run);
+    const Totals run = run_trays(first, trays, grid, erosion, overview_dir, overall);
+    if (trays == 0) continue;
+    std::cout << summary_line(run).dump() << std::endl;
+    least_exact_share = std::min(least_exact_share, static_cast<double>(run.exact) / run.trays);
   }
   if (seeds.size() > 1 && trays > 0) {
     nlohmann::json line = summary_line(overall);
     line["overall"] = true;
     line["runs"] = seeds.size();
-    line["exact_count_share_least"] = overall.least_exact_share;
+    line["exact_count_share_least"] = least_exact_share;
     std::cout << line.dump() << std::endl;
   }
   if (million > 0) {
