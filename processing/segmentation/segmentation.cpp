@@ -459,7 +459,7 @@ float off_clay_line(const Vec3f& clay, const Vec3f& face) {
 // A part that shows a sherd's fracture face — the fired core, greyer than the surfaces, cut off
 // from them by the erosion where the wall's edge meets a surface at a sharp crease — joins the
 // part of its sherd's surface, levels or no neck between them, though their hues differ: when
-// it is no wider than a wall is thick (kFaceMaxWidthMm, twice its deepest voxel's distance from
+// it is no wider than a wall is thick (kFacePartMaxWidthMm, twice its deepest voxel's distance from
 // the boundary), greyer than that surface's clay and within kFaceMaxOffClayLine of the clay's
 // line to grey (kLevelFaceMaxOffClayLine for levels, whose even step without contact already
 // tells much). Measured on bench_segmentation (100 trays each, seeds 1 / 1001 / 5001 / 7001;
@@ -474,13 +474,18 @@ float off_clay_line(const Vec3f& clay, const Vec3f& face) {
 // 19.7 mm wide and more (1028 at 0.011; 65 at 0.006 is 26 mm wide): 0.02 for levels joins 61
 // (seed 1: no sherd split any more) and changes nothing on the other five seeds (9001 / 11001
 // held out). That figure was fitted to the one tray.
+// A part's width bound was kFaceMaxWidthMm (18 mm, as for the hue regions in clays_of) until
+// ten seeds (100 trays each of 1 / 1001 / 5001 / … / 19001): of the part pairs passing the
+// levels' or the no-neck border tests by the face rule, one sherd's faces were 13.4–15.7 mm
+// wide (14 pairs), two different sherds merged as faces 16.5 and 16.8 mm (19070, 17011).
 constexpr double kFaceMaxWidthMm = 18.0;
+constexpr double kFacePartMaxWidthMm = 16.0;
 constexpr double kFaceMaxOffClayLine = 0.008;
 constexpr double kLevelFaceMaxOffClayLine = 0.02;
 
 bool fracture_face_of(const Vec3f& clay_rgb, const Vec3f& face_rgb, double face_width_mm,
                       double max_off_clay_line) {
-  return face_width_mm <= kFaceMaxWidthMm && greyer(hue(face_rgb), hue(clay_rgb)) &&
+  return face_width_mm <= kFacePartMaxWidthMm && greyer(hue(face_rgb), hue(clay_rgb)) &&
          off_clay_line(clay_rgb, face_rgb) < max_off_clay_line;
 }
 
@@ -554,8 +559,13 @@ std::vector<std::pair<int, int>> levels_of_one_sherd(
 // 0.30–0.44 ×; different sherds with borders over 0.7 × had hues 0.025–0.047 apart. On seed
 // 5001, two sherds 0.0108 apart (tray 5096) merged with 0.012, hence 0.008; seeds 5001 and 7001
 // (not used for choosing the other figures): exact count 91 → 92 % and 92 → 94 %, no merges.
-constexpr double kNoNeckMinBorderShare = 0.7;
-constexpr double kNoNeckMaxHueDifference = 0.008;
+// Over ten seeds (1 / 1001 / 5001 / … / 19001), different sherds of hues closer than 0.0085
+// had borders of at most 0.30 × (0.53 and 0.58 × at 0.0091–0.0092), and one sherd's parts
+// 0.68 × (19012, split at 0.7) and 0.0081 apart (19082, joined until then as a face); pairs
+// joined by the face rule went down to 0.61 × for different sherds (61, 1022): 0.65 and
+// 0.0085 join both and change nothing else.
+constexpr double kNoNeckMinBorderShare = 0.65;
+constexpr double kNoNeckMaxHueDifference = 0.0085;
 
 // Pairs (a, b) of parts (by `tag`, widths `width` in mm) with no neck between them, among the
 // voxels `among` of the parts marked in `judged`.

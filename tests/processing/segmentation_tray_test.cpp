@@ -276,20 +276,42 @@ TEST_P(TwoClaysTray, EachClayIsASherdOfItsOwn) { expect_bench_tray_found(1, GetP
 
 INSTANTIATE_TEST_SUITE_P(BenchTrays, TwoClaysTray, ::testing::Values(34u, 38u, 54u, 77u));
 
-// A tray of bench_segmentation (seed 5001's tray 5021) in which one sherd's clay lies near the
-// line from its neighbour's clay to grey (0.005 off), so the colour split took it for that
-// neighbour's fracture face: the two came out as one (precision 0.85). A region 32 mm wide is no
-// face.
-TEST(TwoClays, ASherdNearAnotherClaysLineToGreyIsNoFace) {
-  expect_bench_tray_found(5001, 5021, 0.9, 0.9);
+// Trays of bench_segmentation (first seed of the run, tray) in which a sherd was taken for its
+// neighbour's fracture face and the two came out as one:
+// * by the colour split, whose face peaks lie near the line from their clay to grey: one sherd's
+//   clay 0.005 off that line of its neighbour's (seed 5001's tray 5021, precision 0.85; a region
+//   32 mm wide is no face), or a small sherd's 0.028 off (seed 9001's tray 9097, precision 0.977;
+//   one sherd's faces lie within 0.01);
+// * by the no-neck test's face rule, a part on its neighbour's line to grey but 16.8 and 16.5 mm
+//   wide (seed 17001's tray 17011, precision 0.955; seed 19001's tray 19070, 0.945), where one
+//   sherd's face parts are at most 15.7 mm wide.
+struct TrayOfRun {
+  const char* what;
+  std::uint64_t first;
+  std::uint64_t tray;
+};
+
+// How GoogleTest names a case in its output (instead of the struct's bytes).
+void PrintTo(const TrayOfRun& tray, std::ostream* out) {
+  *out << tray.what << ": tray " << tray.tray << " of the run from seed " << tray.first;
 }
 
-// A tray of bench_segmentation (seed 9001's tray 9097) in which a small sherd lies against a
-// larger one whose line to grey it lies 0.028 off: it was taken for that sherd's fracture face
-// (one sherd's faces lie within 0.01 of the line) and the two came out as one (precision 0.977).
-TEST(TwoClays, ASherdOffAnotherClaysLineToGreyIsNoFace) {
-  expect_bench_tray_found(9001, 9097, 0.9, 0.9);
+std::string case_name(const ::testing::TestParamInfo<TrayOfRun>& info) {
+  return std::string(info.param.what) + "_" + std::to_string(info.param.tray);
 }
+
+class SherdTakenForAFaceTray : public ::testing::TestWithParam<TrayOfRun> {};
+
+TEST_P(SherdTakenForAFaceTray, EachSherdIsFoundOnItsOwn) {
+  expect_bench_tray_found(GetParam().first, GetParam().tray, 0.9, 0.9);
+}
+
+INSTANTIATE_TEST_SUITE_P(BenchTrays, SherdTakenForAFaceTray,
+                         ::testing::Values(TrayOfRun{"WideRegionNearTheLine", 5001, 5021},
+                                           TrayOfRun{"PeakOffTheLine", 9001, 9097},
+                                           TrayOfRun{"PartWiderThanAFace", 17001, 17011},
+                                           TrayOfRun{"PartWiderThanAFace", 19001, 19070}),
+                         case_name);
 
 // Trays of `bench_segmentation --seed 1` in which the watershed handed a strip of one sherd,
 // mostly its fracture face behind a step, to the sherd it touches (truth sherd 14 of tray 2:
@@ -315,18 +337,10 @@ INSTANTIATE_TEST_SUITE_P(BenchTrays, FaceStripTray, ::testing::Values(2u, 74u, 9
 //   test allowed (sherd 5 of seed 5001's tray 5075: 28 %, step q90 / q10 1.604, bound 1.6);
 // * a narrow sherd that the erosion cut into two small cores, each with a large part (sherd 6 of
 //   seed 5001's tray 5041: 51 / 49 %; sherd 1 of seed 7001's tray 7072: 58 / 42 %), kept apart
-//   as a narrow sherd touching another: beside a part whose core is as small, they are one.
-struct TrayOfRun {
-  const char* what;
-  std::uint64_t first;
-  std::uint64_t tray;
-};
-
-// How GoogleTest names a case in its output (instead of the struct's bytes).
-void PrintTo(const TrayOfRun& tray, std::ostream* out) {
-  *out << tray.what << ": tray " << tray.tray << " of the run from seed " << tray.first;
-}
-
+//   as a narrow sherd touching another: beside a part whose core is as small, they are one;
+// * one sherd's two parts with no neck between them, along a border 0.68 × the narrower part's
+//   width (sherd 1 of seed 19001's tray 19012: 46 %; bound 0.7 before), or of hues 0.0081 apart
+//   (a sherd of tray 19082, joined before as a fracture face 17 mm wide; hue bound 0.008).
 class SherdInTwoPartsTray : public ::testing::TestWithParam<TrayOfRun> {};
 
 TEST_P(SherdInTwoPartsTray, TheSherdIsFoundWhole) {
@@ -339,11 +353,10 @@ INSTANTIATE_TEST_SUITE_P(BenchTrays, SherdInTwoPartsTray,
                                            TrayOfRun{"FractureFaceLevel", 7001, 7004},
                                            TrayOfRun{"LevelsOfAnUnevenStep", 5001, 5075},
                                            TrayOfRun{"NarrowSherdCutInTwo", 5001, 5041},
-                                           TrayOfRun{"NarrowSherdCutInTwo", 7001, 7072}),
-                         [](const auto& info) {
-                           return std::string(info.param.what) + "_" +
-                                  std::to_string(info.param.tray);
-                         });
+                                           TrayOfRun{"NarrowSherdCutInTwo", 7001, 7072},
+                                           TrayOfRun{"NoNeckAlongAShorterBorder", 19001, 19012},
+                                           TrayOfRun{"NoNeckAtTheHueNoise", 19001, 19082}),
+                         case_name);
 
 // A black plate seen from above every 0.5 mm, x from −50 to 30 mm, y from −40 to 40 mm, with
 // what `cell` puts at (x, y): truth label (0 plate), height and colour.
