@@ -428,13 +428,19 @@ struct TopView {
 // more trays. The spread was 1.6 from those; over six seeds (100 trays each of 1 / 1001 / 5001 /
 // 7001 / 9001 / 11001), pairs passing the other tests (step, contact, clay) had spreads of
 // 1.31–1.98 for one sherd's levels (tray 5075 split at 1.604) and 2.11 and more for different
-// sherds (5014): 1.85 joins 5075 and changes nothing else.
+// sherds (5014): 1.85 joins 5075 and changes nothing else. The border must also be as long as a
+// wall across the sherd, at least kLevelMinBorderShare of the narrower part's width (its length
+// as for parts_without_neck): a sherd leaning on another of the same vessel shows an even step
+// only where it overlaps the other. Over fourteen seeds (1 / 1001 / 5001 / … / 27001), pairs
+// passing all other tests had borders of 1.4–3.3 × when they were one sherd's levels (20 pairs),
+// 0.27–0.37 × when they were two sherds (23012 and 23050 merged, both one vessel's).
 constexpr double kLevelStepMinMm = 3.0;
 constexpr double kLevelStepMaxMm = 8.0;
 constexpr double kLevelStepMaxSpread = 1.85;
 constexpr double kLevelMaxContactShare = 0.05;
 constexpr double kLevelMaxHueDifference = 0.03;
 constexpr std::size_t kLevelMinStepPairs = 100;  // a border, not a corner
+constexpr double kLevelMinBorderShare = 0.7;
 
 // Hue of a colour sum as (g/r, b/r): shading scales all three channels alike, so the two levels
 // of one sherd, lit differently, keep it.
@@ -516,14 +522,23 @@ std::vector<std::pair<int, int>> levels_of_one_sherd(
   pcl::Indices found;
   const float radius2 = static_cast<float>(radius * radius);
   std::vector<std::vector<std::vector<float>>> steps(parts, std::vector<std::vector<float>>(parts));
+  // The border's length: the area of the bands along the step (voxels of either part with a step
+  // pair to the other) over 2 × radius, as for parts_without_neck.
+  std::vector<std::vector<std::size_t>> band(parts, std::vector<std::size_t>(parts, 0));
+  std::vector<int> beside;
   for (auto v : among) {
     top.search(centres[v], radius, found);
+    beside.clear();
     for (auto f : found) {
       const auto n = top.voxel_at[f];
-      if (tag[n] <= tag[v] || (centres[n] - centres[v]).squaredNorm() <= radius2) continue;
-      steps[tag[v]][tag[n]].push_back(std::abs(centres[n].z() - centres[v].z()));
+      if (tag[n] == tag[v] || (centres[n] - centres[v]).squaredNorm() <= radius2) continue;
+      if (std::find(beside.begin(), beside.end(), tag[n]) == beside.end()) beside.push_back(tag[n]);
+      if (tag[n] > tag[v])
+        steps[tag[v]][tag[n]].push_back(std::abs(centres[n].z() - centres[v].z()));
     }
+    for (int b : beside) ++band[tag[v]][b];
   }
+  const double leaf = radius / kVoxelsPerTolerance;
   std::vector<std::pair<int, int>> levels;
   for (int a = 0; a < parts; ++a) {
     for (int b = a + 1; b < parts; ++b) {
@@ -535,9 +550,11 @@ std::vector<std::pair<int, int>> levels_of_one_sherd(
         return static_cast<double>(*at);
       };
       const double q10 = quantile(0.1), q90 = quantile(0.9);
+      const double border_mm = (band[a][b] + band[b][a]) * leaf * leaf / (2.0 * radius);
       const bool wall = q10 >= kLevelStepMinMm && q90 <= kLevelStepMaxMm &&
                         q90 <= kLevelStepMaxSpread * q10 &&
-                        contacts[a][b] <= kLevelMaxContactShare * heights.size();
+                        contacts[a][b] <= kLevelMaxContactShare * heights.size() &&
+                        border_mm >= kLevelMinBorderShare * std::min(width[a], width[b]);
       const bool one_clay = of_one_clay(core_rgb[a], width[a], core_rgb[b], width[b],
                                         kLevelMaxHueDifference, kLevelFaceMaxOffClayLine);
       if (wall && one_clay) levels.emplace_back(a, b);

@@ -277,14 +277,18 @@ TEST_P(TwoClaysTray, EachClayIsASherdOfItsOwn) { expect_bench_tray_found(1, GetP
 INSTANTIATE_TEST_SUITE_P(BenchTrays, TwoClaysTray, ::testing::Values(34u, 38u, 54u, 77u));
 
 // Trays of bench_segmentation (first seed of the run, tray) in which a sherd was taken for its
-// neighbour's fracture face and the two came out as one:
+// neighbour's fracture face or level and the two came out as one:
 // * by the colour split, whose face peaks lie near the line from their clay to grey: one sherd's
 //   clay 0.005 off that line of its neighbour's (seed 5001's tray 5021, precision 0.85; a region
 //   32 mm wide is no face), or a small sherd's 0.028 off (seed 9001's tray 9097, precision 0.977;
 //   one sherd's faces lie within 0.01);
 // * by the no-neck test's face rule, a part on its neighbour's line to grey but 16.8 and 16.5 mm
 //   wide (seed 17001's tray 17011, precision 0.955; seed 19001's tray 19070, 0.945), where one
-//   sherd's face parts are at most 15.7 mm wide.
+//   sherd's face parts are at most 15.7 mm wide;
+// * by the levels' test: two sherds of one vessel, one leaning on the other, with an even step
+//   where they overlap, but along a border 0.28 and 0.37 × the narrower one's width (seed 23001's
+//   trays 23012, precision 0.808, and 23050, 0.913), where one sherd's levels meet along 1.4 ×
+//   or more.
 struct TrayOfRun {
   const char* what;
   std::uint64_t first;
@@ -300,17 +304,19 @@ std::string case_name(const ::testing::TestParamInfo<TrayOfRun>& info) {
   return std::string(info.param.what) + "_" + std::to_string(info.param.tray);
 }
 
-class SherdTakenForAFaceTray : public ::testing::TestWithParam<TrayOfRun> {};
+class TwoSherdsAsOneTray : public ::testing::TestWithParam<TrayOfRun> {};
 
-TEST_P(SherdTakenForAFaceTray, EachSherdIsFoundOnItsOwn) {
+TEST_P(TwoSherdsAsOneTray, EachSherdIsFoundOnItsOwn) {
   expect_bench_tray_found(GetParam().first, GetParam().tray, 0.9, 0.9);
 }
 
-INSTANTIATE_TEST_SUITE_P(BenchTrays, SherdTakenForAFaceTray,
+INSTANTIATE_TEST_SUITE_P(BenchTrays, TwoSherdsAsOneTray,
                          ::testing::Values(TrayOfRun{"WideRegionNearTheLine", 5001, 5021},
                                            TrayOfRun{"PeakOffTheLine", 9001, 9097},
                                            TrayOfRun{"PartWiderThanAFace", 17001, 17011},
-                                           TrayOfRun{"PartWiderThanAFace", 19001, 19070}),
+                                           TrayOfRun{"PartWiderThanAFace", 19001, 19070},
+                                           TrayOfRun{"ShortStepOfALeaningSherd", 23001, 23012},
+                                           TrayOfRun{"ShortStepOfALeaningSherd", 23001, 23050}),
                          case_name);
 
 // Trays of `bench_segmentation --seed 1` in which the watershed handed a strip of one sherd,
