@@ -442,6 +442,19 @@ constexpr double kLevelMaxHueDifference = 0.03;
 constexpr std::size_t kLevelMinStepPairs = 100;  // a border, not a corner
 constexpr double kLevelMinBorderShare = 0.7;
 
+// The step heights along a border (reordered) are those of a wall between one sherd's levels:
+// enough of them, a real step, no higher than such a wall and about equally high all along.
+bool level_wall(std::vector<float>& heights) {
+  if (heights.size() < kLevelMinStepPairs) return false;
+  auto quantile = [&](double q) {
+    const auto at = heights.begin() + static_cast<std::ptrdiff_t>(q * (heights.size() - 1));
+    std::nth_element(heights.begin(), at, heights.end());
+    return static_cast<double>(*at);
+  };
+  const double q10 = quantile(0.1), q90 = quantile(0.9);
+  return q10 >= kLevelStepMinMm && q90 <= kLevelStepMaxMm && q90 <= kLevelStepMaxSpread * q10;
+}
+
 // Hue of a colour sum as (g/r, b/r): shading scales all three channels alike, so the two levels
 // of one sherd, lit differently, keep it.
 Eigen::Vector2f hue(const Vec3f& rgb) {
@@ -543,16 +556,8 @@ std::vector<std::pair<int, int>> levels_of_one_sherd(
   for (int a = 0; a < parts; ++a) {
     for (int b = a + 1; b < parts; ++b) {
       auto& heights = steps[a][b];
-      if (heights.size() < kLevelMinStepPairs) continue;
-      auto quantile = [&](double q) {
-        const auto at = heights.begin() + static_cast<std::ptrdiff_t>(q * (heights.size() - 1));
-        std::nth_element(heights.begin(), at, heights.end());
-        return static_cast<double>(*at);
-      };
-      const double q10 = quantile(0.1), q90 = quantile(0.9);
       const double border_mm = (band[a][b] + band[b][a]) * leaf * leaf / (2.0 * radius);
-      const bool wall = q10 >= kLevelStepMinMm && q90 <= kLevelStepMaxMm &&
-                        q90 <= kLevelStepMaxSpread * q10 &&
+      const bool wall = level_wall(heights) &&
                         contacts[a][b] <= kLevelMaxContactShare * heights.size() &&
                         border_mm >= kLevelMinBorderShare * std::min(width[a], width[b]);
       const bool one_clay = of_one_clay(core_rgb[a], width[a], core_rgb[b], width[b],
@@ -725,9 +730,11 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
 // raised edge of a sherd leaning on another (its fracture face, seen from above as a strip as
 // wide as the wall is thick) with the sherd's surface falling away steeply beside it. It comes out
 // as a part of its own — a cluster, as the wall leaves a gap in 3-D — that the erosion leaves no
-// sherd-sized core, lying in the top view right against the rest of its sherd. It joins the part
-// (with a core) that, together: borders it in the top view along at least kWallMinBorderShare of
-// its voxels (top-view neighbours, apart in 3-D); hardly touches it in 3-D beside that
+// sherd-sized core, lying in the top view right against the rest of its sherd; so does a narrow
+// level of a sherd behind a step higher than the clustering distance. It joins the part (with a
+// core) that, together: borders it in the top view along at least kWallMinBorderShare of its
+// voxels (top-view neighbours, apart in 3-D), or less behind a level's wall (level_wall: an even
+// step, 3–8 mm high); hardly touches it in 3-D beside that
 // (kLevelMaxContactShare); and has its clay's colour, or that colour mixed with grey — the
 // fired core a fracture face shows is greyer than the surfaces — within kWallMaxOffClayLine of
 // that line in hue. Of several, the one nearest in colour: a leaning sherd's strip borders
@@ -736,6 +743,12 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
 // 94 of seeds 1 and 2; 1014, 1062, 1068, 1099) cover 80–245 mm², lie 3–5 mm from their boundary
 // at the deepest, border their sherd along 28–86 % of their voxels and lie 0.002–0.012 off its
 // clay line; the other sherds bordering them 0.018–0.065 off. Seed 1001's exact count 91 → 94 %.
+// Over eighteen seeds (1 / 1001 / 5001 / … / 35001), four narrow levels in clusters of their own
+// (trays 13026, 23092, 29059, 33056) bordered their sherd along 22–24 % of their voxels, 0.0001–
+// 0.0011 off its clay line, behind steps of q90 / q10 1.1–1.2; a narrow sherd beside another
+// (9025, merged when the share alone was lowered to 0.2) 23 %, 0.0026 off, behind a step of
+// 6–14 mm (a leaning neighbour). With the level's wall as an alternative the four join and no tray
+// changes otherwise.
 constexpr double kWallPartMinMm2 = 40.0;
 constexpr double kWallMinBorderShare = 0.25;
 constexpr double kWallMaxOffClayLine = 0.015;
@@ -768,7 +781,8 @@ std::vector<std::vector<std::uint32_t>> join_across_unseen_walls(
   std::vector<int> joins(n_parts, -1);
   std::vector<int> beside;  // the cored parts a voxel borders across a step
   for (int p : narrow) {
-    std::map<int, std::size_t> bordering, steps, contacts;  // per cored part
+    std::map<int, std::size_t> bordering, contacts;  // per cored part
+    std::map<int, std::vector<float>> steps;         // step heights, per cored part
     for (auto v : parts[p]) {
       top.search(centres[v], radius, found);
       beside.clear();
@@ -778,7 +792,7 @@ std::vector<std::vector<std::uint32_t>> join_across_unseen_walls(
         if ((centres[n] - centres[v]).squaredNorm() <= radius2) {
           ++contacts[q];
         } else {
-          ++steps[q];
+          steps[q].push_back(std::abs(centres[n].z() - centres[v].z()));
           if (std::find(beside.begin(), beside.end(), q) == beside.end()) beside.push_back(q);
         }
       }
@@ -787,8 +801,8 @@ std::vector<std::vector<std::uint32_t>> join_across_unseen_walls(
     float best = kWallMaxOffClayLine;
     for (const auto& [q, n] : bordering) {
       const float off = off_clay_line(colour[q], colour[p]);
-      if (n < kWallMinBorderShare * parts[p].size() ||
-          contacts[q] > kLevelMaxContactShare * steps[q] || off >= best)
+      if ((n < kWallMinBorderShare * parts[p].size() && !level_wall(steps[q])) ||
+          contacts[q] > kLevelMaxContactShare * steps[q].size() || off >= best)
         continue;
       best = off;
       joins[p] = q;

@@ -346,7 +346,10 @@ INSTANTIATE_TEST_SUITE_P(BenchTrays, FaceStripTray, ::testing::Values(2u, 74u, 9
 //   as a narrow sherd touching another: beside a part whose core is as small, they are one;
 // * one sherd's two parts with no neck between them, along a border 0.68 × the narrower part's
 //   width (sherd 1 of seed 19001's tray 19012: 46 %; bound 0.7 before), or of hues 0.0081 apart
-//   (a sherd of tray 19082, joined before as a fracture face 17 mm wide; hue bound 0.008).
+//   (a sherd of tray 19082, joined before as a fracture face 17 mm wide; hue bound 0.008);
+// * a narrow level of a sherd in a cluster of its own, behind an even step but bordering the rest
+//   of its sherd along less than a quarter of its voxels (sherd 1 of seed 23001's tray 23092: 20 %
+//   of it; sherd 4 of seed 29001's tray 29059: 34 %).
 class SherdInTwoPartsTray : public ::testing::TestWithParam<TrayOfRun> {};
 
 TEST_P(SherdInTwoPartsTray, TheSherdIsFoundWhole) {
@@ -361,7 +364,9 @@ INSTANTIATE_TEST_SUITE_P(BenchTrays, SherdInTwoPartsTray,
                                            TrayOfRun{"NarrowSherdCutInTwo", 5001, 5041},
                                            TrayOfRun{"NarrowSherdCutInTwo", 7001, 7072},
                                            TrayOfRun{"NoNeckAlongAShorterBorder", 19001, 19012},
-                                           TrayOfRun{"NoNeckAtTheHueNoise", 19001, 19082}),
+                                           TrayOfRun{"NoNeckAtTheHueNoise", 19001, 19082},
+                                           TrayOfRun{"NarrowLevelOfItsOwn", 23001, 23092},
+                                           TrayOfRun{"NarrowLevelOfItsOwn", 29001, 29059}),
                          case_name);
 
 // A black plate seen from above every 0.5 mm, x from −50 to 30 mm, y from −40 to 40 mm, with
