@@ -455,6 +455,13 @@ bool level_wall(std::vector<float>& heights) {
   return q10 >= kLevelStepMinMm && q90 <= kLevelStepMaxMm && q90 <= kLevelStepMaxSpread * q10;
 }
 
+// A border's length (mm) from the bands along it: `band_ab` voxels of one part and `band_ba` of the
+// other within `radius` of it, each band about `radius` wide.
+double border_length_mm(std::size_t band_ab, std::size_t band_ba, double radius) {
+  const double leaf = radius / kVoxelsPerTolerance;
+  return static_cast<double>(band_ab + band_ba) * leaf * leaf / (2.0 * radius);
+}
+
 // Hue of a colour sum as (g/r, b/r): shading scales all three channels alike, so the two levels
 // of one sherd, lit differently, keep it.
 Eigen::Vector2f hue(const Vec3f& rgb) {
@@ -537,8 +544,7 @@ std::vector<std::pair<int, int>> levels_of_one_sherd(
   pcl::Indices found;
   const float radius2 = static_cast<float>(radius * radius);
   std::vector<std::vector<std::vector<float>>> steps(parts, std::vector<std::vector<float>>(parts));
-  // The border's length: the area of the bands along the step (voxels of either part with a step
-  // pair to the other) over 2 × radius, as for parts_without_neck.
+  // The border's bands: the voxels of either part with a step pair to the other.
   std::vector<std::vector<std::size_t>> band(parts, std::vector<std::size_t>(parts, 0));
   std::vector<int> beside;
   for (auto v : among) {
@@ -553,12 +559,11 @@ std::vector<std::pair<int, int>> levels_of_one_sherd(
     }
     for (int b : beside) ++band[tag[v]][b];
   }
-  const double leaf = radius / kVoxelsPerTolerance;
   std::vector<std::pair<int, int>> levels;
   for (int a = 0; a < parts; ++a) {
     for (int b = a + 1; b < parts; ++b) {
       auto& heights = steps[a][b];
-      const double border_mm = (band[a][b] + band[b][a]) * leaf * leaf / (2.0 * radius);
+      const double border_mm = border_length_mm(band[a][b], band[b][a], radius);
       const bool wall = level_wall(heights) &&
                         contacts[a][b] <= kLevelMaxContactShare * heights.size() &&
                         border_mm >= kLevelMinBorderShare * std::min(width[a], width[b]);
@@ -596,7 +601,7 @@ constexpr double kNoNeckMaxHueDifference = 0.0085;
 std::vector<std::pair<int, int>> parts_without_neck(
     const Graph& near, const std::vector<std::uint32_t>& among, const std::vector<int>& tag,
     const std::vector<double>& width, const std::vector<std::uint8_t>& judged,
-    const std::vector<Vec3f>& core_rgb, double radius, double leaf) {
+    const std::vector<Vec3f>& core_rgb, double radius) {
   const int parts = static_cast<int>(core_rgb.size());
   std::vector<std::vector<std::size_t>> band(parts, std::vector<std::size_t>(parts, 0));
   std::vector<int> beside;
@@ -613,7 +618,7 @@ std::vector<std::pair<int, int>> parts_without_neck(
   for (int a = 0; a < parts; ++a) {
     for (int b = a + 1; b < parts; ++b) {
       if (!judged[a] || !judged[b] || band[a][b] == 0) continue;
-      const double border_mm = (band[a][b] + band[b][a]) * leaf * leaf / (2.0 * radius);
+      const double border_mm = border_length_mm(band[a][b], band[b][a], radius);
       const double narrower_mm = std::min(width[a], width[b]);
       const bool one_clay = of_one_clay(core_rgb[a], width[a], core_rgb[b], width[b],
                                         kNoNeckMaxHueDifference, kFaceMaxOffClayLine);
@@ -714,8 +719,7 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
     }
     for (auto [a, b] : levels_of_one_sherd(near, centres, judged, tag, width, core_rgb, radius))
       group[root(a)] = root(b);
-    for (auto [a, b] : parts_without_neck(near, judged, tag, width, sherd_sized, core_rgb, radius,
-                                          radius / kVoxelsPerTolerance))
+    for (auto [a, b] : parts_without_neck(near, judged, tag, width, sherd_sized, core_rgb, radius))
       group[root(a)] = root(b);
   }
   std::vector<int> part_of(cores, -1);
