@@ -1210,13 +1210,31 @@ std::vector<std::vector<std::uint32_t>> faces_to_their_clay(
   return result;
 }
 
-// Euclidean clusters of the candidates, each split where sherds touch, as sorted point indices.
-// The clustering distance is the configured one or, where the points lie sparser than that
-// allows, kSpacingsPerTolerance point spacings: the scale comes from the data.
+// Parts given as voxels, as their points' indices (sorted).
+std::vector<std::vector<std::uint32_t>> points_of(
+    const Voxels& voxels, const std::vector<std::vector<std::uint32_t>>& parts) {
+  std::vector<std::vector<std::uint32_t>> found;
+  for (const auto& part : parts) {
+    std::vector<std::uint32_t> members;
+    for (auto v : part) {
+      for (std::size_t k = voxels.begin[v]; k < voxels.begin[v + 1]; ++k)
+        members.push_back(voxels.keyed[k].second);
+    }
+    std::sort(members.begin(), members.end());
+    found.push_back(std::move(members));
+  }
+  return found;
+}
+
+// Euclidean clusters of the candidates, each split where sherds touch, as sorted point indices;
+// the parts after each step kept in `steps` when given. The clustering distance is the
+// configured one or, where the points lie sparser than that allows, kSpacingsPerTolerance point
+// spacings: the scale comes from the data.
 std::vector<std::vector<std::uint32_t>> clusters(const std::vector<Vec3f>& points,
                                                  const std::vector<Rgb8>& colours,
                                                  const std::vector<std::uint32_t>& candidates,
-                                                 const Params& params) {
+                                                 const Params& params,
+                                                 std::vector<ClusteringStep>* steps) {
   double tolerance = params.cluster_tolerance_mm;
   Voxels voxels = voxelise(points, candidates, tolerance / kVoxelsPerTolerance);
   const double spacing = point_spacing(voxels, tolerance / kVoxelsPerTolerance);
@@ -1251,14 +1269,20 @@ std::vector<std::vector<std::uint32_t>> clusters(const std::vector<Vec3f>& point
     }
   }
 
+  auto keep = [&](const char* step, const std::vector<std::vector<std::uint32_t>>& parts) {
+    if (steps != nullptr) steps->push_back({step, points_of(voxels, parts)});
+  };
+  const auto euclidean = components(near, all, {});
+  keep("clusters", euclidean);
   std::vector<std::vector<std::uint32_t>> parts;
-  for (const auto& cluster : components(near, all, {})) {
+  for (const auto& cluster : euclidean) {
     auto split = params.contact_erosion_mm > 0.0
                      ? split_at_contacts(near, voxels.centres, voxel_rgb, cluster, tolerance,
                                          params.contact_erosion_mm, sizes, distance, tag)
                      : std::vector<std::vector<std::uint32_t>>{cluster};
     for (auto& part : split) parts.push_back(std::move(part));
   }
+  if (params.contact_erosion_mm > 0.0) keep("contacts", parts);
   if (params.contact_erosion_mm > 0.0 && !voxel_rgb.empty()) {
     // By clay first: a piece of a sherd cut off by colour from the neighbour it was flooded
     // with then joins its sherd across the unseen wall (tray 89 of seed 1: a rim band behind
@@ -1266,22 +1290,15 @@ std::vector<std::vector<std::uint32_t>> clusters(const std::vector<Vec3f>& point
     std::vector<float> clay_distance(voxels.centres.size());
     parts = split_by_clay(std::move(parts), near, voxels.centres, voxel_rgb, tolerance, leaf,
                           clay_distance, tag);
+    keep("clay", parts);
     parts =
         join_across_unseen_walls(std::move(parts), voxels.centres, voxel_rgb, distance, tolerance,
                                  params.contact_erosion_mm, sizes.min_core_voxels, leaf);
+    keep("walls", parts);
     parts = faces_to_their_clay(std::move(parts), near, voxels.centres, voxel_rgb, tolerance, leaf);
+    keep("faces", parts);
   }
-  std::vector<std::vector<std::uint32_t>> found;
-  for (const auto& part : parts) {
-    std::vector<std::uint32_t> members;
-    for (auto v : part) {
-      for (std::size_t k = voxels.begin[v]; k < voxels.begin[v + 1]; ++k)
-        members.push_back(voxels.keyed[k].second);
-    }
-    std::sort(members.begin(), members.end());
-    found.push_back(std::move(members));
-  }
-  return found;
+  return points_of(voxels, parts);
 }
 
 // Background colour is judged per point, then smoothed over the neighbourhood: a point of
@@ -1324,8 +1341,9 @@ Vec3d centroid_of(const std::vector<Vec3f>& points, const std::vector<std::uint3
 
 }  // namespace
 
-Result segment(const Mesh& fused, const Params& params) {
+Result segment(const Mesh& fused, const Params& params, std::vector<ClusteringStep>* steps) {
   check_params(params);
+  if (steps != nullptr) steps->clear();
   Result result;
   const auto& points = fused.vertices.points;
   if (points.empty()) return result;
@@ -1349,7 +1367,7 @@ Result segment(const Mesh& fused, const Params& params) {
   }
   result.background_points = points.size() - candidates.size();
 
-  for (auto& cluster : clusters(points, fused.vertices.colours, candidates, params)) {
+  for (auto& cluster : clusters(points, fused.vertices.colours, candidates, params, steps)) {
     const double extent = largest_side(points, cluster);
     std::string reason;
     if (cluster.size() < static_cast<std::size_t>(params.min_points)) {

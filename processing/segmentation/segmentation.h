@@ -95,11 +95,21 @@ struct Result {
   std::size_t background_points = 0;
 };
 
+// The parts (point indices, sorted, as in Part::indices) after one step of the clustering, before
+// the size filters: what the tray benchmark reads to tell which step left a sherd split or merged.
+struct ClusteringStep {
+  // "clusters"; with contact splitting "contacts", with colours then "clay", "walls", "faces"
+  std::string name;
+  std::vector<std::vector<std::uint32_t>> parts;
+};
+
 // Steps, in order: non-finite points out; the support plane (fitted on the whole scene, where it
 // is certainly the dominant plane); the holding frame (frame_height_mm); the scanning volume;
 // background colour (needs colours); Euclidean clustering; touching sherds split (see
 // contact_erosion_mm); size filters. Every point removed by the first four counts in
-// background_points. An empty input gives an empty result.
-Result segment(const Mesh& fused, const Params& params);
+// background_points. An empty input gives an empty result. With `steps`, the parts after each
+// step of the clustering and splitting are kept there (for the benchmark; it costs a copy each).
+Result segment(const Mesh& fused, const Params& params,
+               std::vector<ClusteringStep>* steps = nullptr);
 
 }  // namespace sherd::segmentation

@@ -3,6 +3,7 @@
 // simulator's labels; and the overview image at its documented scale.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -74,6 +75,52 @@ TEST_P(TouchingTray, EverySherdFoundWholeAndAlone) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Seeds, TouchingTray, ::testing::Values(1u, 2u, 3u));
+
+// How many truth sherds each part of `parts` holds at least a tenth of.
+std::vector<int> sherds_held(const sim::Tray& tray,
+                             const std::vector<std::vector<std::uint32_t>>& parts) {
+  std::map<int, std::size_t> truth_size;
+  for (int label : tray.labels) ++truth_size[label];
+  std::vector<int> held;
+  for (const auto& part : parts) {
+    std::map<int, std::size_t> counts;
+    for (auto i : part) ++counts[tray.labels[i]];
+    int n = 0;
+    for (const auto& [label, count] : counts) n += label > 0 && 10 * count >= truth_size[label];
+    held.push_back(n);
+  }
+  return held;
+}
+
+// The steps kept for the benchmark show what the splitting did: on a tray of touching sherds the
+// Euclidean clusters hold two or more truth sherds together, the parts after the contacts are
+// split hold one each, and the last step's parts are the sherds found (the size filters pass them
+// all); keeping the steps changes nothing found.
+TEST(ClusteringSteps, TouchingSherdsAreOneClusterAndApartAfterTheContacts) {
+  const sim::Tray tray = touching_tray(1, sim::Background::Black);
+  const seg::Params params = tray_params(sim::Background::Black);
+  std::vector<seg::ClusteringStep> steps;
+  const seg::Result traced = seg::segment(tray.cloud, params, &steps);
+
+  std::vector<std::string> names;
+  for (const auto& step : steps) names.push_back(step.name);
+  EXPECT_EQ(names, (std::vector<std::string>{"clusters", "contacts", "clay", "walls", "faces"}));
+  ASSERT_EQ(steps.size(), 5u);
+  const auto clustered = sherds_held(tray, steps[0].parts);
+  EXPECT_GE(*std::max_element(clustered.begin(), clustered.end()), 2);
+  for (int held : sherds_held(tray, steps[1].parts)) EXPECT_LE(held, 1);
+
+  std::set<std::vector<std::uint32_t>> last(steps.back().parts.begin(), steps.back().parts.end());
+  std::set<std::vector<std::uint32_t>> found;
+  for (const auto& part : traced.sherds) found.insert(part.indices);
+  for (const auto& rejected : traced.rejected) found.insert(rejected.indices);
+  EXPECT_EQ(last, found);
+
+  const seg::Result plain = seg::segment(tray.cloud, params);
+  ASSERT_EQ(plain.sherds.size(), traced.sherds.size());
+  for (std::size_t k = 0; k < plain.sherds.size(); ++k)
+    EXPECT_EQ(plain.sherds[k].indices, traced.sherds[k].indices) << plain.sherds[k].id;
+}
 
 // Trays of bench_segmentation (seed, sherd count and background as it lays them) in which a
 // narrow sherd touches a larger one: the erosion leaves it a core under contact_min_core_mm2,
