@@ -1,12 +1,13 @@
 // Benchmark: segmentation of simulated trays (simulators/tray.h) against their per-point truth.
 //   bench_segmentation [--trays 100] [--seed 1[,1001,…]] [--grid 0.5] [--million 3]
-//                      [--real DIR] [--overview DIR] [--contact-erosion 5]
+//                      [--real DIR] [--overview DIR] [--contact-erosion 5] [--by-step]
 // One JSON line per tray: sherds in truth and found, per-point precision and recall, truth sherds
 // merged with another or split, time. Then a summary line per run of trays (medians, share of
 // trays with the exact count, precision and recall pooled over every point of every tray), with
 // several first seeds an overall line over all runs (a figure chosen on one run is checked on the
 // others: held-out runs), and, with --million N, N timings of one ≈ 1 M-point tray (20 sherds,
-// 0.265 mm grid).
+// 0.265 mm grid). With --by-step, each tray line and summary also counts the merged and split
+// sherds by the step of the segmentation that left them so (segment()'s ClusteringStep names).
 //
 // Matching: every found sherd stands for the truth sherd that holds most of its points, every
 // truth sherd is found as the part holding most of its points. Precision = points of found
@@ -34,26 +35,30 @@ namespace sim = sherd::sim;
 
 namespace {
 
+enum class Failure { None, Merged, Split };
+
 struct Score {
   double precision = 0.0, recall = 0.0;
   int merged = 0, split = 0;
   // The point counts behind precision and recall, for figures pooled over all trays.
   std::size_t in_parts = 0, right_in_parts = 0, truth_total = 0, recalled = 0;
+  std::vector<Failure> failures;  // per truth label (index 0, the background, unused)
 };
 
-Score score(const sim::Tray& tray, const seg::Result& result) {
+// `parts`: the point indices of each part found.
+Score score(const sim::Tray& tray, const std::vector<std::vector<std::uint32_t>>& parts) {
   const int k = tray.sherds;
   // counts[p][t]: points of found part p with truth label t (0 = background).
-  std::vector<std::vector<std::size_t>> counts(result.sherds.size(),
-                                               std::vector<std::size_t>(k + 1, 0));
-  for (std::size_t p = 0; p < result.sherds.size(); ++p) {
-    for (auto i : result.sherds[p].indices) ++counts[p][tray.labels[i]];
+  std::vector<std::vector<std::size_t>> counts(parts.size(), std::vector<std::size_t>(k + 1, 0));
+  for (std::size_t p = 0; p < parts.size(); ++p) {
+    for (auto i : parts[p]) ++counts[p][tray.labels[i]];
   }
   std::vector<std::size_t> truth_size(k + 1, 0);
   for (int label : tray.labels) ++truth_size[label];
 
   Score s;
-  std::vector<int> stands_for(result.sherds.size(), 0);
+  s.failures.assign(k + 1, Failure::None);
+  std::vector<int> stands_for(parts.size(), 0);
   std::size_t in_parts = 0, right_in_parts = 0;
   for (std::size_t p = 0; p < counts.size(); ++p) {
     int best = 1;
@@ -73,16 +78,52 @@ Score score(const sim::Tray& tray, const seg::Result& result) {
     if (part < 0 || counts[part][t] == 0) continue;  // not found at all: recall counts it
     if (stands_for[part] != t) {
       ++s.merged;
+      s.failures[t] = Failure::Merged;
       continue;
     }
     recalled += counts[part][t];
-    s.split += big_parts > 1;
+    if (big_parts > 1) ++s.split, s.failures[t] = Failure::Split;
   }
   s.precision = in_parts > 0 ? static_cast<double>(right_in_parts) / in_parts : 0.0;
   s.recall = truth_total > 0 ? static_cast<double>(recalled) / truth_total : 0.0;
   s.in_parts = in_parts, s.right_in_parts = right_in_parts;
   s.truth_total = truth_total, s.recalled = recalled;
   return s;
+}
+
+std::vector<std::vector<std::uint32_t>> parts_of(const seg::Result& result) {
+  std::vector<std::vector<std::uint32_t>> parts;
+  for (const auto& sherd : result.sherds) parts.push_back(sherd.indices);
+  return parts;
+}
+
+// Failing sherds counted by the step of the segmentation that left them so: the earliest step
+// after which the sherd stays merged (or split) through every later one; "sizes" when only the
+// size filters did (a part dropped as too small, say). A merge kept from "clusters" is one that
+// no splitting step undid.
+struct FailuresBy {
+  std::map<std::string, int> merged, split;
+
+  void add(const FailuresBy& other) {
+    for (const auto& [step, n] : other.merged) merged[step] += n;
+    for (const auto& [step, n] : other.split) split[step] += n;
+  }
+};
+
+FailuresBy failures_by_step(const sim::Tray& tray, const std::vector<seg::ClusteringStep>& steps,
+                            const Score& final_score) {
+  std::vector<Score> after;
+  for (const auto& step : steps) after.push_back(score(tray, step.parts));
+  FailuresBy by;
+  for (int t = 1; t <= tray.sherds; ++t) {
+    const Failure failure = final_score.failures[t];
+    if (failure == Failure::None) continue;
+    std::string step = "sizes";
+    for (auto s = steps.size(); s > 0 && after[s - 1].failures[t] == failure; --s)
+      step = steps[s - 1].name;
+    ++(failure == Failure::Merged ? by.merged : by.split)[step];
+  }
+  return by;
 }
 
 // The truth drawn like a segmentation, to view beside the one found (--overview).
@@ -129,7 +170,8 @@ double time_ms(const std::chrono::steady_clock::time_point& start) {
 struct Totals {
   std::vector<double> precisions, recalls, times;
   int trays = 0, exact = 0, merged = 0, split = 0, trays_merged = 0;
-  Score pooled;  // point counts summed over the trays
+  Score pooled;        // point counts summed over the trays
+  FailuresBy by_step;  // with --by-step
 
   void add(const Score& s, bool count_exact, double ms) {
     ++trays;
@@ -146,8 +188,9 @@ struct Totals {
 };
 
 // `trays` trays from seed `first` (backgrounds alternating, black first), one JSON line each;
-// each also counts in `overall`.
-Totals run_trays(std::uint64_t first, int trays, double grid, double erosion,
+// each also counts in `overall`. With `by_step`, failing sherds are counted by the step that left
+// them so (the time then includes keeping each step's parts).
+Totals run_trays(std::uint64_t first, int trays, double grid, double erosion, bool by_step,
                  const std::string& overview_dir, Totals& overall) {
   Totals t;
   for (int n = 0; n < trays; ++n) {
@@ -156,10 +199,12 @@ Totals run_trays(std::uint64_t first, int trays, double grid, double erosion,
                              n % 2 == 0 ? sim::Background::Black : sim::Background::White);
     spec.grid_mm = grid;
     const sim::Tray tray = sim::make_tray(spec);
+    std::vector<seg::ClusteringStep> steps;
     const auto start = std::chrono::steady_clock::now();
-    const seg::Result result = seg::segment(tray.cloud, params_for(tray, erosion));
+    const seg::Result result =
+        seg::segment(tray.cloud, params_for(tray, erosion), by_step ? &steps : nullptr);
     const double ms = time_ms(start);
-    const Score s = score(tray, result);
+    const Score s = score(tray, parts_of(result));
     if (!overview_dir.empty()) {
       const std::filesystem::path dir(overview_dir);
       seg::write_overview_png(tray.cloud, result, dir / fmt::format("tray_{}.png", spec.seed));
@@ -169,44 +214,55 @@ Totals run_trays(std::uint64_t first, int trays, double grid, double erosion,
     const bool count_exact = static_cast<int>(result.sherds.size()) == tray.sherds;
     t.add(s, count_exact, ms);
     overall.add(s, count_exact, ms);
-    std::cout << nlohmann::json{{"bench", "segmentation"},
-                                {"seed", spec.seed},
-                                {"background", sim::to_string(spec.background)},
-                                {"points", tray.cloud.vertices.size()},
-                                {"sherds", tray.sherds},
-                                {"touching", tray.touching},
-                                {"leaning", tray.leaning},
-                                {"found", result.sherds.size()},
-                                {"rejected", result.rejected.size()},
-                                {"precision", s.precision},
-                                {"recall", s.recall},
-                                {"merged", s.merged},
-                                {"split", s.split},
-                                {"time_ms", ms}}
-                     .dump()
-              << std::endl;
+    nlohmann::json line{{"bench", "segmentation"},
+                        {"seed", spec.seed},
+                        {"background", sim::to_string(spec.background)},
+                        {"points", tray.cloud.vertices.size()},
+                        {"sherds", tray.sherds},
+                        {"touching", tray.touching},
+                        {"leaning", tray.leaning},
+                        {"found", result.sherds.size()},
+                        {"rejected", result.rejected.size()},
+                        {"precision", s.precision},
+                        {"recall", s.recall},
+                        {"merged", s.merged},
+                        {"split", s.split},
+                        {"time_ms", ms}};
+    if (by_step) {
+      const FailuresBy by = failures_by_step(tray, steps, s);
+      t.by_step.add(by);
+      overall.by_step.add(by);
+      line["merged_by_step"] = by.merged;
+      line["split_by_step"] = by.split;
+    }
+    std::cout << line.dump() << std::endl;
   }
   return t;
 }
 
-nlohmann::json summary_line(const Totals& t) {
-  return {{"bench", "segmentation"},
-          {"summary", true},
-          {"trays", t.trays},
-          {"exact_count_share", static_cast<double>(t.exact) / t.trays},
-          {"precision_median", sherd::bench::median(t.precisions)},
-          {"precision_min", sherd::bench::quantile(t.precisions, 0.0)},
-          {"recall_median", sherd::bench::median(t.recalls)},
-          {"recall_min", sherd::bench::quantile(t.recalls, 0.0)},
-          {"precision_pooled", static_cast<double>(t.pooled.right_in_parts) /
-                                   std::max<std::size_t>(t.pooled.in_parts, 1)},
-          {"recall_pooled",
-           static_cast<double>(t.pooled.recalled) / std::max<std::size_t>(t.pooled.truth_total, 1)},
-          {"merged_sherds", t.merged},
-          {"trays_with_a_merge", t.trays_merged},
-          {"split_sherds", t.split},
-          {"time_ms_median", sherd::bench::median(t.times)},
-          {"time_ms_p90", sherd::bench::quantile(t.times, 0.9)}};
+nlohmann::json summary_line(const Totals& t, bool by_step) {
+  nlohmann::json line{{"bench", "segmentation"},
+                      {"summary", true},
+                      {"trays", t.trays},
+                      {"exact_count_share", static_cast<double>(t.exact) / t.trays},
+                      {"precision_median", sherd::bench::median(t.precisions)},
+                      {"precision_min", sherd::bench::quantile(t.precisions, 0.0)},
+                      {"recall_median", sherd::bench::median(t.recalls)},
+                      {"recall_min", sherd::bench::quantile(t.recalls, 0.0)},
+                      {"precision_pooled", static_cast<double>(t.pooled.right_in_parts) /
+                                               std::max<std::size_t>(t.pooled.in_parts, 1)},
+                      {"recall_pooled", static_cast<double>(t.pooled.recalled) /
+                                            std::max<std::size_t>(t.pooled.truth_total, 1)},
+                      {"merged_sherds", t.merged},
+                      {"trays_with_a_merge", t.trays_merged},
+                      {"split_sherds", t.split},
+                      {"time_ms_median", sherd::bench::median(t.times)},
+                      {"time_ms_p90", sherd::bench::quantile(t.times, 0.9)}};
+  if (by_step) {
+    line["merged_by_step"] = t.by_step.merged;
+    line["split_by_step"] = t.by_step.split;
+  }
+  return line;
 }
 
 }  // namespace
@@ -233,18 +289,21 @@ int main(int argc, char** argv) {
   double erosion = 5.0;
   app.add_option("--contact-erosion", erosion, "contact_erosion_mm for the trays")
       ->capture_default_str();
+  bool by_step = false;
+  app.add_flag("--by-step", by_step,
+               "count each merged or split sherd by the segmentation step that left it so");
   CLI11_PARSE(app, argc, argv);
 
   Totals overall;
   double least_exact_share = 1.0;  // of the runs
   for (const std::uint64_t first : seeds) {
-    const Totals run = run_trays(first, trays, grid, erosion, overview_dir, overall);
+    const Totals run = run_trays(first, trays, grid, erosion, by_step, overview_dir, overall);
     if (trays == 0) continue;
-    std::cout << summary_line(run).dump() << std::endl;
+    std::cout << summary_line(run, by_step).dump() << std::endl;
     least_exact_share = std::min(least_exact_share, static_cast<double>(run.exact) / run.trays);
   }
   if (seeds.size() > 1 && trays > 0) {
-    nlohmann::json line = summary_line(overall);
+    nlohmann::json line = summary_line(overall, by_step);
     line["overall"] = true;
     line["runs"] = seeds.size();
     line["exact_count_share_least"] = least_exact_share;
@@ -262,7 +321,7 @@ int main(int argc, char** argv) {
       const auto start = std::chrono::steady_clock::now();
       const seg::Result result = seg::segment(tray.cloud, params_for(tray, erosion));
       big_times.push_back(time_ms(start));
-      s = score(tray, result);
+      s = score(tray, parts_of(result));
     }
     std::cout << nlohmann::json{{"bench", "segmentation"},
                                 {"million", true},
