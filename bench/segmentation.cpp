@@ -13,7 +13,8 @@
 // truth sherd is found as the part holding most of its points. Precision = points of found
 // sherds that belong to the sherd they stand for / points of found sherds; recall = points of
 // each truth sherd in its part / points of truth sherds. A truth sherd is merged when its part
-// stands for another sherd, split when a second part holds ≥ 10 % of it.
+// stands for another sherd, split when a second part holds ≥ 10 % of it; split into its own
+// parts when each part holding ≥ 10 % of it stands for it (else a piece lies in another's part).
 #include "processing/segmentation/segmentation.h"
 
 #include <fmt/format.h>
@@ -40,6 +41,9 @@ enum class Failure { None, Merged, Split };
 struct Score {
   double precision = 0.0, recall = 0.0;
   int merged = 0, split = 0;
+  // Of the split sherds, those whose every large piece is a part of its own (a join would mend
+  // them); the others have a piece inside another sherd's part (a border in the wrong place).
+  int split_into_own_parts = 0;
   // The point counts behind precision and recall, for figures pooled over all trays.
   std::size_t in_parts = 0, right_in_parts = 0, truth_total = 0, recalled = 0;
   std::vector<Failure> failures;  // per truth label (index 0, the background, unused)
@@ -71,9 +75,12 @@ Score score(const sim::Tray& tray, const std::vector<std::vector<std::uint32_t>>
   for (int t = 1; t <= k; ++t) {
     truth_total += truth_size[t];
     int part = -1, big_parts = 0;
+    bool pieces_own = true;  // every large piece in a part that stands for this sherd
     for (std::size_t p = 0; p < counts.size(); ++p) {
       if (part < 0 || counts[p][t] > counts[part][t]) part = static_cast<int>(p);
-      big_parts += counts[p][t] >= 0.1 * truth_size[t];
+      const bool big = counts[p][t] >= 0.1 * truth_size[t];
+      big_parts += big;
+      pieces_own = pieces_own && (!big || stands_for[p] == t);
     }
     if (part < 0 || counts[part][t] == 0) continue;  // not found at all: recall counts it
     if (stands_for[part] != t) {
@@ -82,7 +89,11 @@ Score score(const sim::Tray& tray, const std::vector<std::vector<std::uint32_t>>
       continue;
     }
     recalled += counts[part][t];
-    if (big_parts > 1) ++s.split, s.failures[t] = Failure::Split;
+    if (big_parts > 1) {
+      ++s.split;
+      s.split_into_own_parts += pieces_own;
+      s.failures[t] = Failure::Split;
+    }
   }
   s.precision = in_parts > 0 ? static_cast<double>(right_in_parts) / in_parts : 0.0;
   s.recall = truth_total > 0 ? static_cast<double>(recalled) / truth_total : 0.0;
@@ -169,7 +180,7 @@ double time_ms(const std::chrono::steady_clock::time_point& start) {
 // Figures of one or more runs of trays.
 struct Totals {
   std::vector<double> precisions, recalls, times;
-  int trays = 0, exact = 0, merged = 0, split = 0, trays_merged = 0;
+  int trays = 0, exact = 0, merged = 0, split = 0, split_into_own_parts = 0, trays_merged = 0;
   Score pooled;        // point counts summed over the trays
   FailuresBy by_step;  // with --by-step
 
@@ -179,6 +190,7 @@ struct Totals {
     merged += s.merged;
     trays_merged += s.merged > 0;
     split += s.split;
+    split_into_own_parts += s.split_into_own_parts;
     pooled.in_parts += s.in_parts, pooled.right_in_parts += s.right_in_parts;
     pooled.truth_total += s.truth_total, pooled.recalled += s.recalled;
     precisions.push_back(s.precision);
@@ -227,6 +239,7 @@ Totals run_trays(std::uint64_t first, int trays, double grid, double erosion, bo
                         {"recall", s.recall},
                         {"merged", s.merged},
                         {"split", s.split},
+                        {"split_into_own_parts", s.split_into_own_parts},
                         {"time_ms", ms}};
     if (by_step) {
       const FailuresBy by = failures_by_step(tray, steps, s);
@@ -256,6 +269,7 @@ nlohmann::json summary_line(const Totals& t, bool by_step) {
                       {"merged_sherds", t.merged},
                       {"trays_with_a_merge", t.trays_merged},
                       {"split_sherds", t.split},
+                      {"split_into_own_parts", t.split_into_own_parts},
                       {"time_ms_median", sherd::bench::median(t.times)},
                       {"time_ms_p90", sherd::bench::quantile(t.times, 0.9)}};
   if (by_step) {
