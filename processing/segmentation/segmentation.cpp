@@ -1121,6 +1121,22 @@ std::vector<std::vector<std::uint32_t>> split_by_clay(
 // 74's strip: 772 against 563). Measured (100 trays each, seeds 1 / 1001 / 5001 / 7001 and the
 // held-out 9001 / 11001): 74 no longer split, counts otherwise unchanged; 14 trays gained
 // 0.15–0.4 % of precision and recall, one (11010) lost 0.17 %.
+// Last, a region off the part's clay (beyond kSameHue, face or not) of kWallPartMinMm2 or more goes
+// to another part when, together: it lies along that part in the top view more than along the
+// rest of its own (more of its voxels have a top-view neighbour there); its hue lies nearer that
+// part's clay or line to grey than its own part's (face_offset_of); and it is hardly joined to
+// the rest of its own part in 3-D, fewer than kRegionMaxPairsPerVoxel neighbour pairs with it per
+// voxel of the region. So go back a piece of a sherd that the watershed handed to its neighbour
+// through a corner (a raised edge behind an unseen wall) and a sherd's fracture face band that the
+// erosion left a core of its own, cut off from the sherd's surface by a step. A sherd's own face
+// strip between its surface and a touching sherd lies along both about equally in the top view,
+// along a crease of its surface in 3-D, and nearer its own clay's line. Measured on
+// bench_segmentation (seeds 1, 1001, 5001, …, 51001, 100 trays each; every region so moved in the
+// trays it made right or wrong, with a debug build, before either test): the 28 regions rightly
+// moved had 0.02–1.8 pairs per voxel (but a 57-voxel rest of one, 3.0) and, but for two (trays
+// 41074, 45050), a hue nearer the part they went to; of the 20 wrongly moved, 14 had 1.96–4.5
+// pairs per voxel and 5 of the other 6 a hue nearer their own part's line (43027's still goes).
+constexpr double kRegionMaxPairsPerVoxel = 1.9;
 std::vector<std::vector<std::uint32_t>> faces_to_their_clay(
     std::vector<std::vector<std::uint32_t>> parts, const Graph& near,
     const std::vector<Vec3f>& centres, const std::vector<Vec3f>& voxel_rgb, double radius,
@@ -1195,6 +1211,44 @@ std::vector<std::vector<std::uint32_t>> faces_to_their_clay(
       for (auto [q, pairs] : touching) {
         if (q >= 0 && q != p && pairs > most && std::isfinite(face_offset_of(clay[q], h)))
           best = q, most = pairs;
+      }
+      if (best >= 0) {
+        for (auto v : region) moved_to[v] = best;
+      }
+    }
+    for (auto v : part) mark[v] = 0;
+    // Regions off the part's clay, not moved above, that lie along another part in the top view
+    // more than along the rest of their own and are hardly joined to it in 3-D.
+    for (std::size_t k = 0; k < part.size(); ++k)
+      mark[part[k]] = (hues[p][k] - clay[p]).norm() >= kSameHue && moved_to[part[k]] < 0;
+    for (const auto& region : components(near, part, mark)) {
+      if (region.size() < min_region) continue;
+      std::size_t joined = 0;  // 3-D neighbour pairs with the rest of the part
+      for (auto v : region) {
+        for (auto n : near[v]) joined += top.part_of[n] == p && !mark[n];
+      }
+      if (joined >= kRegionMaxPairsPerVoxel * region.size()) continue;
+      // Per part (p: the rest of it), the region's voxels that have a top-view neighbour in it.
+      std::map<int, std::size_t> bordering;
+      std::vector<int> beside;
+      for (auto v : region) {
+        top.search(centres[v], radius, found);
+        beside.clear();
+        for (auto f : found) {
+          const auto n = top.voxel_at[f];
+          const int q = top.part_of[n];
+          if ((q != p || !mark[n]) && std::find(beside.begin(), beside.end(), q) == beside.end())
+            beside.push_back(q);
+        }
+        for (int q : beside) ++bordering[q];
+      }
+      const Eigen::Vector2f h = region_hue(region);
+      const float own_offset = face_offset_of(clay[p], h);  // infinite when no face of its part
+      int best = -1;
+      std::size_t most = bordering[p];
+      for (auto [q, count] : bordering) {
+        if (q != p && count > most && face_offset_of(clay[q], h) < own_offset)
+          best = q, most = count;
       }
       if (best >= 0) {
         for (auto v : region) moved_to[v] = best;

@@ -25,8 +25,9 @@ struct Params {
   // erosion leaves no core, cut off from its sherd by a wall too steep to be seen from above (the
   // raised edge of a leaning sherd), joins the sherd it borders in the top view in its clay; two
   // parts of one hue with no neck between them are one sherd; a part of several clays is split
-  // by colour; and a sherd's fracture face strip that went to the sherd it touches goes back by
-  // colour (segmentation.cpp, with the measurements).
+  // by colour; and a sherd's fracture face strip, or a piece of it lying along it in the top view,
+  // that went to the sherd it touches goes back by colour (segmentation.cpp, with the
+  // measurements).
   double contact_erosion_mm = 0.0;
   // A core left by that erosion stands for a sherd of its own only when it covers at least this
   // much of the plate; a smaller one (but at least what a sherd of min_extent_mm keeps) is mostly

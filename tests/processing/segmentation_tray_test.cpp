@@ -381,7 +381,14 @@ std::string case_name(const ::testing::TestParamInfo<TrayOfRun>& info) {
 //   (a sherd of tray 19082, joined before as a fracture face 17 mm wide; hue bound 0.008);
 // * a narrow level of a sherd in a cluster of its own, behind an even step but bordering the rest
 //   of its sherd along less than a quarter of its voxels (sherd 1 of seed 23001's tray 23092: 20 %
-//   of it; sherd 4 of seed 29001's tray 29059: 34 %).
+//   of it; sherd 4 of seed 29001's tray 29059: 34 %);
+// * a fracture face band with a core of its own, cut off from its sherd's surface by a step (sherd
+//   4 of seed 1001's tray 1018: 29 % of it): it lies along its sherd in the top view, not joined
+//   to it in 3-D, and goes to it by colour.
+// A piece of one sherd lay in its neighbour's part, off that part's clay, on its own sherd's:
+// * along its own sherd in the top view, hardly joined to the neighbour's part in 3-D
+//   (sherd 4 of seed 1001's tray 1027: 43 %; sherd 18 of seed 5001's tray 5094: 20 %; sherd 5
+//   of seed 27001's tray 27091: 25 %).
 class FormerlyFailingTray : public ::testing::TestWithParam<TrayOfRun> {};
 
 TEST_P(FormerlyFailingTray, EachSherdIsFoundOnceAndWhole) {
@@ -405,7 +412,11 @@ INSTANTIATE_TEST_SUITE_P(
                       TrayOfRun{"OneAsTwo_NoNeckAlongAShorterBorder", 19001, 19012},
                       TrayOfRun{"OneAsTwo_NoNeckAtTheHueNoise", 19001, 19082},
                       TrayOfRun{"OneAsTwo_NarrowLevelOfItsOwn", 23001, 23092},
-                      TrayOfRun{"OneAsTwo_NarrowLevelOfItsOwn", 29001, 29059}),
+                      TrayOfRun{"OneAsTwo_NarrowLevelOfItsOwn", 29001, 29059},
+                      TrayOfRun{"OneAsTwo_FaceBandBehindAStep", 1001, 1018},
+                      TrayOfRun{"PieceInTheNeighbour_AlongItsOwnSherd", 1001, 1027},
+                      TrayOfRun{"PieceInTheNeighbour_AlongItsOwnSherd", 5001, 5094},
+                      TrayOfRun{"PieceInTheNeighbour_AlongItsOwnSherd", 27001, 27091}),
     case_name);
 
 // A black plate seen from above every 0.5 mm, x from −50 to 30 mm, y from −40 to 40 mm, with
