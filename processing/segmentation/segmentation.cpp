@@ -371,6 +371,11 @@ void flood_from_cores(const Graph& near, const std::vector<std::uint32_t>& clust
   }
 }
 
+// Adds part `part` to `parts` unless it is there (a voxel borders few parts: a linear search).
+void add_once(std::vector<int>& parts, int part) {
+  if (std::find(parts.begin(), parts.end(), part) == parts.end()) parts.push_back(part);
+}
+
 // Voxels flattened onto the plate, for searches in the top view: found[k] of a search is voxel
 // voxel_at[found[k]] (of part part_of[that voxel] when built from parts).
 struct TopView {
@@ -553,7 +558,7 @@ std::vector<std::pair<int, int>> levels_of_one_sherd(
     for (auto f : found) {
       const auto n = top.voxel_at[f];
       if (tag[n] == tag[v] || (centres[n] - centres[v]).squaredNorm() <= radius2) continue;
-      if (std::find(beside.begin(), beside.end(), tag[n]) == beside.end()) beside.push_back(tag[n]);
+      add_once(beside, tag[n]);
       if (tag[n] > tag[v])
         steps[tag[v]][tag[n]].push_back(std::abs(centres[n].z() - centres[v].z()));
     }
@@ -608,9 +613,7 @@ std::vector<std::pair<int, int>> parts_without_neck(
   for (auto v : among) {
     beside.clear();
     for (auto n : near[v]) {
-      if (tag[n] != tag[v] && judged[tag[n]] &&
-          std::find(beside.begin(), beside.end(), tag[n]) == beside.end())
-        beside.push_back(tag[n]);
+      if (tag[n] != tag[v] && judged[tag[n]]) add_once(beside, tag[n]);
     }
     for (int b : beside) ++band[tag[v]][b];
   }
@@ -799,7 +802,7 @@ std::vector<std::vector<std::uint32_t>> join_across_unseen_walls(
           ++contacts[q];
         } else {
           steps[q].push_back(std::abs(centres[n].z() - centres[v].z()));
-          if (std::find(beside.begin(), beside.end(), q) == beside.end()) beside.push_back(q);
+          add_once(beside, q);
         }
       }
       for (int q : beside) ++bordering[q];
@@ -1177,8 +1180,7 @@ std::vector<std::vector<std::uint32_t>> faces_to_their_clay(
         top.search(centres[v], radius, found);
         for (auto f : found) {
           const int q = top.part_of[top.voxel_at[f]];
-          if (q != p && std::find(beside.begin(), beside.end(), q) == beside.end())
-            beside.push_back(q);
+          if (q != p) add_once(beside, q);
         }
       }
       int best = -1;
@@ -1237,8 +1239,7 @@ std::vector<std::vector<std::uint32_t>> faces_to_their_clay(
         for (auto f : found) {
           const auto n = top.voxel_at[f];
           const int q = top.part_of[n];
-          if ((q != p || !mark[n]) && std::find(beside.begin(), beside.end(), q) == beside.end())
-            beside.push_back(q);
+          if (q != p || !mark[n]) add_once(beside, q);
         }
         for (int q : beside) ++bordering[q];
       }
