@@ -749,7 +749,7 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
 // level of a sherd behind a step higher than the clustering distance. It joins the part (with a
 // core) that, together: borders it in the top view along at least kWallMinBorderShare of its
 // voxels (top-view neighbours, apart in 3-D), or less behind a level's wall (level_wall: an even
-// step, 3–8 mm high); hardly touches it in 3-D beside that
+// step, 2.5–8 mm high); hardly touches it in 3-D beside that
 // (kLevelMaxContactShare); and has its clay's colour, or that colour mixed with grey — the
 // fired core a fracture face shows is greyer than the surfaces — within kWallMaxOffClayLine of
 // that line in hue. Of several, the one nearest in colour: a leaning sherd's strip borders
