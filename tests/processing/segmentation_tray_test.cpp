@@ -104,8 +104,9 @@ TEST(ClusteringSteps, TouchingSherdsAreOneClusterAndApartAfterTheContacts) {
 
   std::vector<std::string> names;
   for (const auto& step : steps) names.push_back(step.name);
-  EXPECT_EQ(names, (std::vector<std::string>{"clusters", "contacts", "clay", "walls", "faces"}));
-  ASSERT_EQ(steps.size(), 5u);
+  EXPECT_EQ(names,
+            (std::vector<std::string>{"clusters", "contacts", "clay", "walls", "faces", "narrow"}));
+  ASSERT_EQ(steps.size(), 6u);
   const auto clustered = sherds_held(tray, steps[0].parts);
   EXPECT_GE(*std::max_element(clustered.begin(), clustered.end()), 2);
   for (int held : sherds_held(tray, steps[1].parts)) EXPECT_LE(held, 1);
@@ -389,7 +390,12 @@ std::string case_name(const ::testing::TestParamInfo<TrayOfRun>& info) {
 //   to it in 3-D, and goes to it by colour;
 // * a narrow level showing the clay, in a cluster of its own, beside a part of its sherd that is
 //   mostly fracture face (sherd 3 of seed 9001's tray 9012: 36 % of it): the level lies 0.020 off
-//   that part's line to grey, the part 0.0001 off the level's, and the test runs both ways.
+//   that part's line to grey, the part 0.0001 off the level's, and the test runs both ways;
+// * a strip of a sherd seen almost edge-on, under 9 mm wide in the top view where every sherd
+//   shows 11 mm or more, on its sherd's line to grey: cut off by the erosion (the only sherd of
+//   seed 79001's tray 79060: 5 % of it), by the colour split as a second clay (sherd 1 of seed
+//   67001's tray 67089: 12 %), or handed to the touching sherd by the watershed and cut off from
+//   it by the colour split (sherd 1 of seed 77001's tray 77003: 5 %).
 // A piece of one sherd lay in its neighbour's part, off that part's clay, on its own sherd's:
 // * along its own sherd in the top view, hardly joined to the neighbour's part in 3-D
 //   (sherd 4 of seed 1001's tray 1027: 43 %; sherd 18 of seed 5001's tray 5094: 20 %; sherd 5
@@ -422,6 +428,9 @@ INSTANTIATE_TEST_SUITE_P(
                       TrayOfRun{"OneAsTwo_NarrowLevelOfItsOwn", 29001, 29059},
                       TrayOfRun{"OneAsTwo_FaceBandBehindAStep", 1001, 1018},
                       TrayOfRun{"OneAsTwo_ClayLevelBesideItsFace", 9001, 9012},
+                      TrayOfRun{"OneAsTwo_StripSeenEdgeOn_CutByTheErosion", 79001, 79060},
+                      TrayOfRun{"OneAsTwo_StripSeenEdgeOn_CutByColour", 67001, 67089},
+                      TrayOfRun{"OneAsTwo_StripSeenEdgeOn_InTheNeighbour", 77001, 77003},
                       TrayOfRun{"PieceInTheNeighbour_AlongItsOwnSherd", 1001, 1027},
                       TrayOfRun{"PieceInTheNeighbour_AlongItsOwnSherd", 5001, 5094},
                       TrayOfRun{"PieceInTheNeighbour_AlongItsOwnSherd", 27001, 27091}),
