@@ -493,6 +493,22 @@ float off_clay_line(const Vec3f& clay, const Vec3f& face) {
   return (hue(face) - c - t * to_grey).norm();
 }
 
+// How far two parts' colours (sums) lie off each other's clay line: the lesser of the two ways,
+// as either may be the clay and the other its fracture face.
+float off_either_line(const Vec3f& a, const Vec3f& b) {
+  return std::min(off_clay_line(a, b), off_clay_line(b, a));
+}
+
+// Each part's colour: the sum over its voxels' sums.
+std::vector<Vec3f> colour_sums(const std::vector<std::vector<std::uint32_t>>& parts,
+                               const std::vector<Vec3f>& voxel_rgb) {
+  std::vector<Vec3f> colour(parts.size(), Vec3f::Zero());
+  for (std::size_t p = 0; p < parts.size(); ++p) {
+    for (auto v : parts[p]) colour[p] += voxel_rgb[v];
+  }
+  return colour;
+}
+
 // A part that shows a sherd's fracture face — the fired core, greyer than the surfaces, cut off
 // from them by the erosion where the wall's edge meets a surface at a sharp crease — joins the
 // part of its sherd's surface, levels or no neck between them, though their hues differ: when
@@ -811,10 +827,7 @@ std::vector<std::vector<std::uint32_t>> join_across_unseen_walls(
   if (top.empty()) return parts;
   pcl::Indices found;
   const float radius2 = static_cast<float>(radius * radius);
-  std::vector<Vec3f> colour(n_parts, Vec3f::Zero());  // sums
-  for (int p = 0; p < n_parts; ++p) {
-    for (auto v : parts[p]) colour[p] += voxel_rgb[v];
-  }
+  const std::vector<Vec3f> colour = colour_sums(parts, voxel_rgb);
   std::vector<int> joins(n_parts, -1);
   std::vector<int> beside;  // the cored parts a voxel borders across a step
   for (int p : narrow) {
@@ -837,8 +850,7 @@ std::vector<std::vector<std::uint32_t>> join_across_unseen_walls(
     }
     float best = kWallMaxOffClayLine;
     for (const auto& [q, n] : bordering) {
-      const float off =
-          std::min(off_clay_line(colour[q], colour[p]), off_clay_line(colour[p], colour[q]));
+      const float off = off_either_line(colour[p], colour[q]);
       if ((n < kWallMinBorderShare * parts[p].size() && !level_wall(steps[q])) ||
           contacts[q] > kLevelMaxContactShare * steps[q].size() || off >= best)
         continue;
@@ -1370,10 +1382,7 @@ std::vector<std::vector<std::uint32_t>> join_narrow_parts(
   if (std::find(narrow.begin(), narrow.end(), 1) == narrow.end()) return parts;
   TopView top(parts, centres, wide);  // among the wide parts' voxels
   if (top.empty()) return parts;
-  std::vector<Vec3f> colour(n_parts, Vec3f::Zero());  // sums
-  for (int p = 0; p < n_parts; ++p) {
-    for (auto v : parts[p]) colour[p] += voxel_rgb[v];
-  }
+  const std::vector<Vec3f> colour = colour_sums(parts, voxel_rgb);
   pcl::Indices found;
   std::vector<int> joins(n_parts, -1);
   std::vector<int> beside;  // the wide parts a narrow one borders
@@ -1389,8 +1398,7 @@ std::vector<std::vector<std::uint32_t>> join_narrow_parts(
     }
     float best = kWallMaxOffClayLine;
     for (int q : beside) {
-      const float off =
-          std::min(off_clay_line(colour[q], colour[p]), off_clay_line(colour[p], colour[q]));
+      const float off = off_either_line(colour[p], colour[q]);
       if (off < best) best = off, joins[p] = q;
     }
   }
