@@ -1405,6 +1405,88 @@ std::vector<std::vector<std::uint32_t>> join_narrow_parts(
   return with_joined(std::move(parts), joins);
 }
 
+// Two parts of different Euclidean clusters that meet in the top view across an even step — the
+// wall between one sherd's levels (level_wall) — along a border at least kLevelMinBorderShare of
+// the narrower one's top-view width are that sherd's levels when the narrower one is a band no
+// wider than kLevelApartMaxWidthMm (a lip, a foot ring, a fracture face) and both show one clay:
+// hues closer than kLevelApartMaxHueDifference, or the band greyer and within
+// kLevelApartFaceMaxOffClayLine of the other's line to grey (of_one_clay). A step higher than the
+// clustering distance leaves such a level a cluster of its own, which levels_of_one_sherd never
+// sees. Parts of one cluster are not judged here: the erosion's tests have judged them by their
+// cores, and the colour split may have parted them. Measured on bench_segmentation (100 trays
+// each of sixteen runs, 1001 / 5001 / … / 61001; part pairs of different clusters passing the
+// step and border tests, against the truth): 3 pairs of one sherd (5069, 29088, 49086; and 93009
+// of a later run) with a narrower part 9.4–15.6 mm wide, hues 0.0026–0.0032 apart or a face
+// 0.0005–0.0016 off its clay's line; 110 pairs of two sherds, touching where one's edge stands
+// higher than the other's. Of those, the ones with a narrower part over 16 mm came as close in
+// hue as one sherd's levels (25011: 0.0058 apart, 25 and 28 mm wide); the 7 up to 16 mm lay
+// 0.038 or more off each other's line. The bounds of the levels inside a cluster (hues 0.03,
+// faces 0.02 off) merged three pairs on other runs, bands 13–15 mm wide 0.0082–0.0104 off
+// (trays 74, 7045, 23054), hence the tighter ones.
+constexpr double kLevelApartMaxWidthMm = 16.0;
+constexpr double kLevelApartMaxHueDifference = 0.01;
+constexpr double kLevelApartFaceMaxOffClayLine = 0.004;
+
+// `parts` (each inside one cluster) with such levels joined; `cluster_of`: each voxel's cluster.
+std::vector<std::vector<std::uint32_t>> join_levels_across_clusters(
+    std::vector<std::vector<std::uint32_t>> parts, const std::vector<Vec3f>& centres,
+    const std::vector<Vec3f>& voxel_rgb, const std::vector<int>& cluster_of, double radius,
+    double leaf) {
+  const int n_parts = static_cast<int>(parts.size());
+  const auto min_voxels = static_cast<std::size_t>(kWallPartMinMm2 / (leaf * leaf));
+  std::vector<std::uint8_t> judged(n_parts, 0);
+  for (int p = 0; p < n_parts; ++p) judged[p] = parts[p].size() >= min_voxels;
+  TopView top(parts, centres, judged);
+  if (top.empty()) return parts;
+  // Per pair of parts (a, b): the step heights (a < b) and a's voxels along the border with b.
+  std::map<std::pair<int, int>, std::vector<float>> steps;
+  std::map<std::pair<int, int>, std::size_t> band;
+  pcl::Indices found;
+  std::vector<int> beside;
+  for (int p = 0; p < n_parts; ++p) {
+    if (!judged[p]) continue;
+    for (auto v : parts[p]) {
+      top.search(centres[v], radius, found);
+      beside.clear();
+      for (auto f : found) {
+        const auto n = top.voxel_at[f];
+        if (cluster_of[n] == cluster_of[v]) continue;  // another cluster: apart in 3-D
+        const int q = top.part_of[n];
+        add_once(beside, q);
+        if (q > p) steps[{p, q}].push_back(std::abs(centres[n].z() - centres[v].z()));
+      }
+      for (int q : beside) ++band[{p, q}];
+    }
+  }
+  if (steps.empty()) return parts;
+  const std::vector<Vec3f> colour = colour_sums(parts, voxel_rgb);
+  std::vector<double> width(n_parts, 0.0);
+  std::vector<int> group(n_parts);
+  std::iota(group.begin(), group.end(), 0);
+  auto root = [&](int p) {
+    while (group[p] != p) p = group[p] = group[group[p]];
+    return p;
+  };
+  for (auto& [pair, heights] : steps) {
+    const auto [a, b] = pair;
+    if (!level_wall(heights)) continue;
+    for (int p : {a, b}) {
+      if (width[p] == 0.0) width[p] = top_view_width(parts[p], centres, leaf);
+    }
+    const double narrower_mm = std::min(width[a], width[b]);
+    const double border_mm = border_length_mm(band[{a, b}], band[{b, a}], radius);
+    if (narrower_mm <= kLevelApartMaxWidthMm && border_mm >= kLevelMinBorderShare * narrower_mm &&
+        of_one_clay(colour[a], width[a], colour[b], width[b], kLevelApartMaxHueDifference,
+                    kLevelApartFaceMaxOffClayLine))
+      group[root(a)] = root(b);
+  }
+  std::vector<int> joins(n_parts, -1);
+  for (int p = 0; p < n_parts; ++p) {
+    if (root(p) != p) joins[p] = root(p);
+  }
+  return with_joined(std::move(parts), joins);
+}
+
 // Euclidean clusters of the candidates, each split where sherds touch, as sorted point indices;
 // the parts after each step kept in `steps` when given. The clustering distance is the
 // configured one or, where the points lie sparser than that allows, kSpacingsPerTolerance point
@@ -1470,6 +1552,13 @@ std::vector<std::vector<std::uint32_t>> clusters(const std::vector<Vec3f>& point
     parts = split_by_clay(std::move(parts), near, voxels.centres, voxel_rgb, tolerance, leaf,
                           clay_distance, tag);
     keep("clay", parts);
+    std::vector<int> cluster_of(voxels.centres.size(), -1);
+    for (std::size_t c = 0; c < euclidean.size(); ++c) {
+      for (auto v : euclidean[c]) cluster_of[v] = static_cast<int>(c);
+    }
+    parts = join_levels_across_clusters(std::move(parts), voxels.centres, voxel_rgb, cluster_of,
+                                        tolerance, leaf);
+    keep("levels", parts);
     parts =
         join_across_unseen_walls(std::move(parts), voxels.centres, voxel_rgb, distance, tolerance,
                                  params.contact_erosion_mm, sizes.min_core_voxels, leaf);

@@ -25,10 +25,11 @@ struct Params {
   // erosion leaves no core, cut off from its sherd by a wall too steep to be seen from above (the
   // raised edge of a leaning sherd), joins the sherd it borders in the top view in its clay; two
   // parts of one hue with no neck between them are one sherd; a part of several clays is split
-  // by colour; a sherd's fracture face strip, or a piece of it lying along it in the top view,
-  // that went to the sherd it touches goes back by colour; and a part left narrower in the top
-  // view than any sherd lying on the plate shows (a strip seen almost edge-on) joins the part of
-  // its clay beside it (segmentation.cpp, with the measurements).
+  // by colour; a narrow level of a sherd behind a step higher than the clustering distance joins
+  // it by the step and colour; a sherd's fracture face strip, or a piece of it lying along it in
+  // the top view, that went to the sherd it touches goes back by colour; and a part left narrower
+  // in the top view than any sherd lying on the plate shows (a strip seen almost edge-on) joins the
+  // part of its clay beside it (segmentation.cpp, with the measurements).
   double contact_erosion_mm = 0.0;
   // A core left by that erosion stands for a sherd of its own only when it covers at least this
   // much of the plate; a smaller one (but at least what a sherd of min_extent_mm keeps) is mostly
@@ -100,8 +101,8 @@ struct Result {
 // The parts (point indices, sorted, as in Part::indices) after one step of the clustering, before
 // the size filters: what the tray benchmark reads to tell which step left a sherd split or merged.
 struct ClusteringStep {
-  // "clusters"; with contact splitting "contacts", with colours then "clay", "walls", "faces",
-  // "narrow"
+  // "clusters"; with contact splitting "contacts", with colours then "clay", "levels", "walls",
+  // "faces", "narrow"
   std::string name;
   std::vector<std::vector<std::uint32_t>> parts;
 };

@@ -104,9 +104,9 @@ TEST(ClusteringSteps, TouchingSherdsAreOneClusterAndApartAfterTheContacts) {
 
   std::vector<std::string> names;
   for (const auto& step : steps) names.push_back(step.name);
-  EXPECT_EQ(names,
-            (std::vector<std::string>{"clusters", "contacts", "clay", "walls", "faces", "narrow"}));
-  ASSERT_EQ(steps.size(), 6u);
+  EXPECT_EQ(names, (std::vector<std::string>{"clusters", "contacts", "clay", "levels", "walls",
+                                             "faces", "narrow"}));
+  ASSERT_EQ(steps.size(), 7u);
   const auto clustered = sherds_held(tray, steps[0].parts);
   EXPECT_GE(*std::max_element(clustered.begin(), clustered.end()), 2);
   for (int held : sherds_held(tray, steps[1].parts)) EXPECT_LE(held, 1);
@@ -396,6 +396,10 @@ std::string case_name(const ::testing::TestParamInfo<TrayOfRun>& info) {
 //   seed 79001's tray 79060: 5 % of it), by the colour split as a second clay (sherd 1 of seed
 //   67001's tray 67089: 12 %), or handed to the touching sherd by the watershed and cut off from
 //   it by the colour split (sherd 1 of seed 77001's tray 77003: 5 %).
+// * a band of a sherd (a fracture face, a lip) behind a step higher than the clustering distance:
+//   a cluster of its own with a sherd-sized core, meeting the rest of its sherd in the top view
+//   across an even step, of its hue or its face's (sherd 1 of seed 5001's tray 5069: 22 % of it;
+//   sherd 10 of seed 29001's tray 29088: 34 %; sherd 2 of seed 49001's tray 49086: about 12 %).
 // A piece of one sherd lay in its neighbour's part, off that part's clay, on its own sherd's:
 // * along its own sherd in the top view, hardly joined to the neighbour's part in 3-D
 //   (sherd 4 of seed 1001's tray 1027: 43 %; sherd 18 of seed 5001's tray 5094: 20 %; sherd 5
@@ -431,6 +435,9 @@ INSTANTIATE_TEST_SUITE_P(
                       TrayOfRun{"OneAsTwo_StripSeenEdgeOn_CutByTheErosion", 79001, 79060},
                       TrayOfRun{"OneAsTwo_StripSeenEdgeOn_CutByColour", 67001, 67089},
                       TrayOfRun{"OneAsTwo_StripSeenEdgeOn_InTheNeighbour", 77001, 77003},
+                      TrayOfRun{"OneAsTwo_BandInAClusterOfItsOwn", 5001, 5069},
+                      TrayOfRun{"OneAsTwo_BandInAClusterOfItsOwn", 29001, 29088},
+                      TrayOfRun{"OneAsTwo_BandInAClusterOfItsOwn", 49001, 49086},
                       TrayOfRun{"PieceInTheNeighbour_AlongItsOwnSherd", 1001, 1027},
                       TrayOfRun{"PieceInTheNeighbour_AlongItsOwnSherd", 5001, 5094},
                       TrayOfRun{"PieceInTheNeighbour_AlongItsOwnSherd", 27001, 27091}),
@@ -514,6 +521,36 @@ TEST(UnseenWall, AStripOfTheClayMixedWithGreyIsPartOfTheSherd) {
 // clay-to-grey line): a sherd of its own beside it.
 TEST(UnseenWall, AStripOfAnotherClayStaysApart) {
   expect_two_sherds(sherd_and_strip(sherd::Rgb8{150, 140, 60}), 1.0);
+}
+
+// A 40 × 50 mm sherd at 10 mm and, beside its 50 mm edge, a 14 mm wide band 5 mm lower, as a lip
+// or a foot ring shows (x from 0.5 to 14.5 mm): the wall between them is never sampled and the
+// step is higher than the clustering distance, so the band is a cluster of its own, wide enough
+// for the erosion to leave it a core. Truth: 1 the sherd, 2 the band.
+PlateScene sherd_and_band(sherd::Rgb8 band_colour) {
+  return plate_scene([&](float x, float y) {
+    if (std::abs(y) > 25 || x < -40 || x > 14.5f || (x > 0 && x < 0.5f)) return Cell{};
+    return x <= 0 ? Cell{1, 10.0f, {180, 120, 80}} : Cell{2, 5.0f, band_colour};
+  });
+}
+
+// The band in the sherd's clay, or in its fracture face's colour (the clay mixed with grey, as in
+// AStripOfTheClayMixedWithGreyIsPartOfTheSherd): one sherd of all their points.
+TEST(LevelApart, ABandOfTheClayBehindAHighStepIsPartOfTheSherd) {
+  for (const sherd::Rgb8 colour : {sherd::Rgb8{180, 120, 80}, sherd::Rgb8{126, 95, 75}}) {
+    const auto scene = sherd_and_band(colour);
+    const auto sherds = segment_scene(scene);
+    ASSERT_EQ(sherds.size(), 1u) << int(colour.r);
+    std::size_t truth_points = 0;
+    for (int label : scene.truth) truth_points += label != 0;
+    EXPECT_EQ(sherds[0].indices.size(), truth_points);
+  }
+}
+
+// The band in the second clay of TwoSherdsAlongAWideContactAreSplitByClay (hue 0.056 along the
+// sherd's clay-to-grey line, 0.019 across it): a sherd of its own, as two sherds side by side.
+TEST(LevelApart, ABandOfAnotherClayBehindAHighStepStaysApart) {
+  expect_two_sherds(sherd_and_band(sherd::Rgb8{170, 121, 82}), 1.0);
 }
 
 // Two sherds at 5 mm side by side, 40 × 40 mm and 28 × 40 mm, along a 40 mm contact, far wider
