@@ -1434,29 +1434,60 @@ std::vector<std::vector<std::uint32_t>> join_levels_across_clusters(
     double leaf) {
   const int n_parts = static_cast<int>(parts.size());
   const auto min_voxels = static_cast<std::size_t>(kWallPartMinMm2 / (leaf * leaf));
-  std::vector<std::uint8_t> judged(n_parts, 0);
-  for (int p = 0; p < n_parts; ++p) judged[p] = parts[p].size() >= min_voxels;
-  TopView top(parts, centres, judged);
-  if (top.empty()) return parts;
+  std::vector<int> part_of(centres.size(), -1);  // of the parts judged: large enough
+  std::vector<std::uint32_t> judged;
+  for (int p = 0; p < n_parts; ++p) {
+    if (parts[p].size() < min_voxels) continue;
+    for (auto v : parts[p]) part_of[v] = p, judged.push_back(v);
+  }
+  if (judged.empty()) return parts;
+  // Only voxels in or beside a top-view cell (`radius` wide) that holds another cluster's can have
+  // one of its voxels within `radius`: cells first, which spares most voxels the radius search.
+  Eigen::Vector2f lo = Eigen::Vector2f::Constant(std::numeric_limits<float>::max()), hi = -lo;
+  for (auto v : judged) {
+    lo = lo.cwiseMin(centres[v].head<2>()), hi = hi.cwiseMax(centres[v].head<2>());
+  }
+  const auto cell = [&](float at, int axis) { return static_cast<int>((at - lo[axis]) / radius); };
+  const auto cell_of = [&](const Vec3f& c, int axis) { return cell(c[axis], axis); };
+  const int nx = cell(hi.x(), 0) + 1, ny = cell(hi.y(), 1) + 1;
+  constexpr int kEmpty = -1, kSeveral = -2;
+  std::vector<int> cell_cluster(static_cast<std::size_t>(nx) * ny, kEmpty);
+  for (auto v : judged) {
+    int& c = cell_cluster[static_cast<std::size_t>(cell_of(centres[v], 1)) * nx +
+                          cell_of(centres[v], 0)];
+    c = c == kEmpty || c == cluster_of[v] ? cluster_of[v] : kSeveral;
+  }
+  std::vector<std::uint32_t> at_borders;
+  for (auto v : judged) {
+    const int i = cell_of(centres[v], 0), j = cell_of(centres[v], 1);
+    bool other = false;
+    for (int b = std::max(0, j - 1); b <= std::min(ny - 1, j + 1) && !other; ++b) {
+      for (int a = std::max(0, i - 1); a <= std::min(nx - 1, i + 1) && !other; ++a) {
+        const int c = cell_cluster[static_cast<std::size_t>(b) * nx + a];
+        other = c != kEmpty && c != cluster_of[v];
+      }
+    }
+    if (other) at_borders.push_back(v);
+  }
+  if (at_borders.empty()) return parts;
+  TopView top(centres, at_borders);
   // Per pair of parts (a, b): the step heights (a < b) and a's voxels along the border with b.
   std::map<std::pair<int, int>, std::vector<float>> steps;
   std::map<std::pair<int, int>, std::size_t> band;
   pcl::Indices found;
   std::vector<int> beside;
-  for (int p = 0; p < n_parts; ++p) {
-    if (!judged[p]) continue;
-    for (auto v : parts[p]) {
-      top.search(centres[v], radius, found);
-      beside.clear();
-      for (auto f : found) {
-        const auto n = top.voxel_at[f];
-        if (cluster_of[n] == cluster_of[v]) continue;  // another cluster: apart in 3-D
-        const int q = top.part_of[n];
-        add_once(beside, q);
-        if (q > p) steps[{p, q}].push_back(std::abs(centres[n].z() - centres[v].z()));
-      }
-      for (int q : beside) ++band[{p, q}];
+  for (auto v : at_borders) {
+    const int p = part_of[v];
+    top.search(centres[v], radius, found);
+    beside.clear();
+    for (auto f : found) {
+      const auto n = top.voxel_at[f];
+      if (cluster_of[n] == cluster_of[v]) continue;  // another cluster: apart in 3-D
+      const int q = part_of[n];
+      add_once(beside, q);
+      if (q > p) steps[{p, q}].push_back(std::abs(centres[n].z() - centres[v].z()));
     }
+    for (int q : beside) ++band[{p, q}];
   }
   if (steps.empty()) return parts;
   const std::vector<Vec3f> colour = colour_sums(parts, voxel_rgb);
