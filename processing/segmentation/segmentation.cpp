@@ -371,6 +371,20 @@ void flood_from_cores(const Graph& near, const std::vector<std::uint32_t>& clust
   }
 }
 
+// Parts joined into groups (union-find), each group named by one of its parts.
+class Groups {
+ public:
+  explicit Groups(int parts) : parent_(parts) { std::iota(parent_.begin(), parent_.end(), 0); }
+  int root(int p) {
+    while (parent_[p] != p) p = parent_[p] = parent_[parent_[p]];
+    return p;
+  }
+  void join(int a, int b) { parent_[root(a)] = root(b); }
+
+ private:
+  std::vector<int> parent_;
+};
+
 // Adds part `part` to `parts` unless it is there (a voxel borders few parts: a linear search).
 void add_once(std::vector<int>& parts, int part) {
   if (std::find(parts.begin(), parts.end(), part) == parts.end()) parts.push_back(part);
@@ -712,12 +726,7 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
   for (auto v : cluster) {
     for (auto n : near[v]) border[tag[v]][tag[n]] += tag[n] != tag[v];
   }
-  std::vector<int> group(cores);
-  std::iota(group.begin(), group.end(), 0);
-  auto root = [&](int c) {
-    while (group[c] != c) c = group[c] = group[group[c]];
-    return c;
-  };
+  Groups group(cores);
   std::vector<std::size_t> basin_size(cores, 0);
   for (auto v : cluster) ++basin_size[tag[v]];
   for (int c = 0; c < cores; ++c) {
@@ -727,7 +736,7 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
                                basin_size[longest] >= sizes.min_own_basin_voxels;
     const bool narrow_sherd = basin_size[c] >= sizes.min_own_basin_voxels &&
                               (!own_neighbour || core_size[longest] >= sizes.min_wide_core_voxels);
-    if (border[c][longest] > 0 && !narrow_sherd) group[root(c)] = root(static_cast<int>(longest));
+    if (border[c][longest] > 0 && !narrow_sherd) group.join(c, static_cast<int>(longest));
   }
   // Levels are looked for among the parts of sherd-sized cores only (the others joined above).
   std::vector<std::uint8_t> sherd_sized(cores);
@@ -743,14 +752,14 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
       width[tag[v]] = std::max(width[tag[v]], 2.0 * distance[v]);
     }
     for (auto [a, b] : levels_of_one_sherd(near, centres, judged, tag, width, core_rgb, radius))
-      group[root(a)] = root(b);
+      group.join(a, b);
     for (auto [a, b] : parts_without_neck(near, judged, tag, width, sherd_sized, core_rgb, radius))
-      group[root(a)] = root(b);
+      group.join(a, b);
   }
   std::vector<int> part_of(cores, -1);
   std::vector<std::vector<std::uint32_t>> parts;
   for (auto v : cluster) {
-    const int g = root(tag[v]);
+    const int g = group.root(tag[v]);
     if (part_of[g] < 0) part_of[g] = static_cast<int>(parts.size()), parts.emplace_back();
     parts[part_of[g]].push_back(v);
   }
@@ -1447,19 +1456,19 @@ std::vector<std::vector<std::uint32_t>> join_levels_across_clusters(
   for (auto v : judged) {
     lo = lo.cwiseMin(centres[v].head<2>()), hi = hi.cwiseMax(centres[v].head<2>());
   }
-  const auto cell = [&](float at, int axis) { return static_cast<int>((at - lo[axis]) / radius); };
-  const auto cell_of = [&](const Vec3f& c, int axis) { return cell(c[axis], axis); };
-  const int nx = cell(hi.x(), 0) + 1, ny = cell(hi.y(), 1) + 1;
+  const auto cell = [&](const auto& at, int axis) {
+    return static_cast<int>((at[axis] - lo[axis]) / radius);
+  };
+  const int nx = cell(hi, 0) + 1, ny = cell(hi, 1) + 1;
   constexpr int kEmpty = -1, kSeveral = -2;
   std::vector<int> cell_cluster(static_cast<std::size_t>(nx) * ny, kEmpty);
   for (auto v : judged) {
-    int& c = cell_cluster[static_cast<std::size_t>(cell_of(centres[v], 1)) * nx +
-                          cell_of(centres[v], 0)];
+    int& c = cell_cluster[static_cast<std::size_t>(cell(centres[v], 1)) * nx + cell(centres[v], 0)];
     c = c == kEmpty || c == cluster_of[v] ? cluster_of[v] : kSeveral;
   }
   std::vector<std::uint32_t> at_borders;
   for (auto v : judged) {
-    const int i = cell_of(centres[v], 0), j = cell_of(centres[v], 1);
+    const int i = cell(centres[v], 0), j = cell(centres[v], 1);
     bool other = false;
     for (int b = std::max(0, j - 1); b <= std::min(ny - 1, j + 1) && !other; ++b) {
       for (int a = std::max(0, i - 1); a <= std::min(nx - 1, i + 1) && !other; ++a) {
@@ -1492,12 +1501,7 @@ std::vector<std::vector<std::uint32_t>> join_levels_across_clusters(
   if (steps.empty()) return parts;
   const std::vector<Vec3f> colour = colour_sums(parts, voxel_rgb);
   std::vector<double> width(n_parts, 0.0);
-  std::vector<int> group(n_parts);
-  std::iota(group.begin(), group.end(), 0);
-  auto root = [&](int p) {
-    while (group[p] != p) p = group[p] = group[group[p]];
-    return p;
-  };
+  Groups group(n_parts);
   for (auto& [pair, heights] : steps) {
     const auto [a, b] = pair;
     if (!level_wall(heights)) continue;
@@ -1509,11 +1513,11 @@ std::vector<std::vector<std::uint32_t>> join_levels_across_clusters(
     if (narrower_mm <= kLevelApartMaxWidthMm && border_mm >= kLevelMinBorderShare * narrower_mm &&
         of_one_clay(colour[a], width[a], colour[b], width[b], kLevelApartMaxHueDifference,
                     kLevelApartFaceMaxOffClayLine))
-      group[root(a)] = root(b);
+      group.join(a, b);
   }
   std::vector<int> joins(n_parts, -1);
   for (int p = 0; p < n_parts; ++p) {
-    if (root(p) != p) joins[p] = root(p);
+    if (group.root(p) != p) joins[p] = group.root(p);
   }
   return with_joined(std::move(parts), joins);
 }
