@@ -367,6 +367,11 @@ std::string case_name(const ::testing::TestParamInfo<TrayOfRun>& info) {
 //   where they overlap, but along a border 0.28 and 0.37 × the narrower one's width (seed 23001's
 //   trays 23012, precision 0.808, and 23050, 0.913), where one sherd's levels meet along 1.4 ×
 //   or more.
+// Two sherds came out as one where the erosion left one of them no core 5 mm deep, its boundary
+// found inside it too (steep ridges and lips), so that the touching sherd's core took it: a shallow
+// core now stands for it (seed 25001's tray 25085, precision 0.956; seed 105001's tray 105017,
+// 0.968), and the join across unseen walls no longer hands such a part back to its neighbour (seed
+// 55001's tray 55097, 0.974).
 // One sherd came out as two parts:
 // * a fracture face with a core of its own — along the edge of a sherd leaning on another (truth
 //   sherd 4 of seed 1's tray 32: 21 % of it) or a level behind a step (sherd 5 of seed 1's tray
@@ -413,6 +418,9 @@ TEST_P(FormerlyFailingTray, EachSherdIsFoundOnceAndWhole) {
 INSTANTIATE_TEST_SUITE_P(
     BenchTrays, FormerlyFailingTray,
     ::testing::Values(TrayOfRun{"TwoAsOne_WideRegionNearTheLine", 5001, 5021},
+                      TrayOfRun{"TwoAsOne_NoDeepCore", 25001, 25085},
+                      TrayOfRun{"TwoAsOne_NoDeepCore", 105001, 105017},
+                      TrayOfRun{"TwoAsOne_ShallowCoredPartAcrossAWall", 55001, 55097},
                       TrayOfRun{"TwoAsOne_PeakOffTheLine", 9001, 9097},
                       TrayOfRun{"TwoAsOne_PartWiderThanAFace", 17001, 17011},
                       TrayOfRun{"TwoAsOne_PartWiderThanAFace", 19001, 19070},
@@ -551,6 +559,36 @@ TEST(LevelApart, ABandOfTheClayBehindAHighStepIsPartOfTheSherd) {
 // sherd's clay-to-grey line, 0.019 across it): a sherd of its own, as two sherds side by side.
 TEST(LevelApart, ABandOfAnotherClayBehindAHighStepStaysApart) {
   expect_two_sherds(sherd_and_band(sherd::Rgb8{170, 121, 82}), 1.0);
+}
+
+// A 22 × 30 mm sherd at 5 mm (x from 0.5 to 22.5 mm, y from −4 to 26 mm) with a ridge 3 mm wide
+// and 2 mm high along its length (x from 10 to 13 mm), as a flange or a cordon: the ridge's sides
+// are steps the boundary test takes for edges, so the erosion finds the sherd two strips 9.5 mm
+// wide, 4.75 mm deep at the most: no core 5 mm deep, one 3 mm deep in each strip. In the clay of
+// `with_neighbour`'s 40 × 38 mm sherd (x from −40 to 0 mm, y from −38 to 0 mm), which touches it
+// along 4 mm of its edge. Truth: 1 the neighbour, 2 the ridged sherd.
+PlateScene ridged_sherd(bool with_neighbour) {
+  return plate_scene([&](float x, float y) {
+    const sherd::Rgb8 clay{180, 120, 80};
+    if (with_neighbour && x >= -40 && x <= 0 && y >= -38 && y <= 0) return Cell{1, 5.0f, clay};
+    if (x < 0.5f || x > 22.5f || y < -4 || y > 26) return Cell{};
+    return Cell{2, x >= 10 && x <= 13 ? 7.0f : 5.0f, clay};
+  });
+}
+
+// Alone, the ridged sherd stays one sherd: its two strips' shallow cores are one sherd's.
+TEST(ShallowCores, ARidgedSherdIsOneSherd) {
+  const auto scene = ridged_sherd(false);
+  const auto sherds = segment_scene(scene);
+  ASSERT_EQ(sherds.size(), 1u);
+  EXPECT_EQ(sherds[0].indices.size(),
+            static_cast<std::size_t>(std::count(scene.truth.begin(), scene.truth.end(), 2)));
+}
+
+// Beside a wider sherd of the same clay, the ridged sherd (the two strips' shallow cores together,
+// 660 mm²) is a sherd of its own: without the shallow cores the wider sherd's core takes it all.
+TEST(ShallowCores, ARidgedSherdTouchingAWiderOneOfItsClayIsASherdOfItsOwn) {
+  expect_two_sherds(ridged_sherd(true), 0.97);
 }
 
 // Two sherds at 5 mm side by side, 40 × 40 mm and 28 × 40 mm, along a 40 mm contact, far wider
