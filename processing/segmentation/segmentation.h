@@ -102,7 +102,7 @@ struct Result {
 // the size filters: what the tray benchmark reads to tell which step left a sherd split or merged.
 struct ClusteringStep {
   // "clusters"; with contact splitting "contacts", with colours then "clay", "levels", "walls",
-  // "faces", "narrow"
+  // "faces", "narrow", "folds"
   std::string name;
   std::vector<std::vector<std::uint32_t>> parts;
 };

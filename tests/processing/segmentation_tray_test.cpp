@@ -105,8 +105,8 @@ TEST(ClusteringSteps, TouchingSherdsAreOneClusterAndApartAfterTheContacts) {
   std::vector<std::string> names;
   for (const auto& step : steps) names.push_back(step.name);
   EXPECT_EQ(names, (std::vector<std::string>{"clusters", "contacts", "clay", "levels", "walls",
-                                             "faces", "narrow"}));
-  ASSERT_EQ(steps.size(), 7u);
+                                             "faces", "narrow", "folds"}));
+  ASSERT_EQ(steps.size(), 8u);
   const auto clustered = sherds_held(tray, steps[0].parts);
   EXPECT_GE(*std::max_element(clustered.begin(), clustered.end()), 2);
   for (int held : sherds_held(tray, steps[1].parts)) EXPECT_LE(held, 1);
@@ -405,6 +405,11 @@ std::string case_name(const ::testing::TestParamInfo<TrayOfRun>& info) {
 //   a cluster of its own with a sherd-sized core, meeting the rest of its sherd in the top view
 //   across an even step, of its hue or its face's (sherd 1 of seed 5001's tray 5069: 22 % of it;
 //   sherd 10 of seed 29001's tray 29088: 34 %; sherd 2 of seed 49001's tray 49086: about 12 %).
+// * a sherd folded over itself (an everted rim, a carination seen from above): two levels with
+//   the wall between them hidden under the fold, a band up to 20 mm wide beside the rest, of one
+//   clay's line to grey, covering together 0.875 or more of their convex hull in the top view
+//   (sherd 4 of seed 11001's tray 11095; sherd 2 of seed 47001's tray 47066; sherd 1 of seed
+//   105001's tray 105018: its fracture face band, 10 mm wide, behind a step of 3.8–7.1 mm).
 // A piece of one sherd lay in its neighbour's part, off that part's clay, on its own sherd's:
 // * along its own sherd in the top view, hardly joined to the neighbour's part in 3-D
 //   (sherd 4 of seed 1001's tray 1027: 43 %; sherd 18 of seed 5001's tray 5094: 20 %; sherd 5
@@ -446,6 +451,9 @@ INSTANTIATE_TEST_SUITE_P(
                       TrayOfRun{"OneAsTwo_BandInAClusterOfItsOwn", 5001, 5069},
                       TrayOfRun{"OneAsTwo_BandInAClusterOfItsOwn", 29001, 29088},
                       TrayOfRun{"OneAsTwo_BandInAClusterOfItsOwn", 49001, 49086},
+                      TrayOfRun{"OneAsTwo_FoldedOverItself", 11001, 11095},
+                      TrayOfRun{"OneAsTwo_FoldedOverItself", 47001, 47066},
+                      TrayOfRun{"OneAsTwo_FoldedOverItself", 105001, 105018},
                       TrayOfRun{"PieceInTheNeighbour_AlongItsOwnSherd", 1001, 1027},
                       TrayOfRun{"PieceInTheNeighbour_AlongItsOwnSherd", 5001, 5094},
                       TrayOfRun{"PieceInTheNeighbour_AlongItsOwnSherd", 27001, 27091}),
@@ -589,6 +597,41 @@ TEST(ShallowCores, ARidgedSherdIsOneSherd) {
 // 660 mm²) is a sherd of its own: without the shallow cores the wider sherd's core takes it all.
 TEST(ShallowCores, ARidgedSherdTouchingAWiderOneOfItsClayIsASherdOfItsOwn) {
   expect_two_sherds(ridged_sherd(true), 0.97);
+}
+
+// A 30 × 40 mm sherd at 12 mm (x from −30 to 0 mm) and, beside its 40 mm edge, a 14 mm wide band
+// (x from 0.5 to 14.5 mm) lower by a step that grows from 3 to 7 mm along that edge: a sherd folded
+// over itself (an everted rim seen from above) whose fold hides the wall between its levels. The
+// band shows the other skin of the clay, 0.9 × the sherd's (180, 120, 80): the same hue. Its step
+// varies more than the levels' tests allow (q90 / q10 about 1.9), and it is higher than the
+// clustering distance. The arguments set how far the sherd and the band reach along y.
+// Truth: 1 the sherd, 2 the band.
+PlateScene sherd_and_folded_band(float sherd_from_y, float sherd_to_y, float band_from_y,
+                                 float band_to_y) {
+  return plate_scene([=](float x, float y) {
+    if (x >= -30 && x <= 0 && y >= sherd_from_y && y <= sherd_to_y)
+      return Cell{1, 12.0f, {180, 120, 80}};
+    if (x < 0.5f || x > 14.5f || y < band_from_y || y > band_to_y) return Cell{};
+    const float along = std::clamp((y - sherd_from_y) / (sherd_to_y - sherd_from_y), 0.0f, 1.0f);
+    return Cell{2, 12.0f - (3.0f + 4.0f * along), {162, 108, 72}};
+  });
+}
+
+// Band and sherd side by side along the whole band fill their convex hull together: one sherd.
+TEST(Folds, ABandAlongTheWholeSherdOfItsClayIsPartOfIt) {
+  const auto scene = sherd_and_folded_band(-20, 20, -20, 20);
+  const auto sherds = segment_scene(scene);
+  ASSERT_EQ(sherds.size(), 1u);
+  EXPECT_EQ(sherds[0].indices.size(),
+            static_cast<std::size_t>(scene.truth.size() -
+                                     std::count(scene.truth.begin(), scene.truth.end(), 0)));
+}
+
+// The same band 76 mm long beside a 40 mm sherd (y from −38 mm), reaching 36 mm past its end:
+// together they cover about 0.8 of their convex hull (2,264 of 2,833 mm², by hand), as a narrow
+// sherd lying against another does. Two sherds.
+TEST(Folds, ABandReachingFarPastTheSherdStaysApart) {
+  expect_two_sherds(sherd_and_folded_band(-38, 2, -38, 38), 1.0);
 }
 
 // Two sherds at 5 mm side by side, 40 × 40 mm and 28 × 40 mm, along a 40 mm contact, far wider
