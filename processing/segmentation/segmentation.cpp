@@ -726,10 +726,29 @@ constexpr double kWideCoreMm2 = 80.0;
 // the first 13 runs, splitting sherds.
 constexpr double kShallowCoreShare = 0.6;
 
+// The parts of the clusters after the first stages of split_at_contacts, for the benchmark's
+// steps (segment()'s ClusteringStep): each core's basin, then the basins after the shallow and
+// small cores' basins joined their neighbours.
+struct ContactStages {
+  std::vector<std::vector<std::uint32_t>> basins, small_cores;
+};
+
+// The voxels of `cluster` as parts by the group of their basin (`tag`), appended to `parts`.
+void append_parts(const std::vector<std::uint32_t>& cluster, const std::vector<int>& tag,
+                  Groups& group, int groups, std::vector<std::vector<std::uint32_t>>& parts) {
+  std::vector<int> part_of(groups, -1);
+  for (auto v : cluster) {
+    const int g = group.root(tag[v]);
+    if (part_of[g] < 0) part_of[g] = static_cast<int>(parts.size()), parts.emplace_back();
+    parts[part_of[g]].push_back(v);
+  }
+}
+
 std::vector<std::vector<std::uint32_t>> split_at_contacts(
     const Graph& near, const std::vector<Vec3f>& centres, const std::vector<Vec3f>& voxel_rgb,
     const std::vector<std::uint32_t>& cluster, double radius, double erosion,
-    const CoreSizes& sizes, std::vector<float>& distance, std::vector<int>& tag) {
+    const CoreSizes& sizes, std::vector<float>& distance, std::vector<int>& tag,
+    ContactStages* stages) {
   std::vector<std::uint8_t> core(near.size(), 0);
   geodesic_from(near, centres, cluster, boundary_of(near, centres, cluster, radius, core), distance,
                 tag, core);
@@ -754,8 +773,16 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
   }
   for (auto v : cluster) core[v] = 0;  // `core` is sized for all voxels; leave it clean
   const int cores = static_cast<int>(core_size.size());
-  if (cores < 2) return {cluster};
+  if (cores < 2) {
+    if (stages != nullptr) {
+      stages->basins.push_back(cluster);
+      stages->small_cores.push_back(cluster);
+    }
+    return {cluster};
+  }
   flood_from_cores(near, cluster, seeds, distance, tag);
+  Groups group(cores);
+  if (stages != nullptr) append_parts(cluster, tag, group, cores, stages->basins);
   std::vector<std::vector<std::size_t>> border;  // neighbour pairs between basins
   std::vector<std::size_t> basin_size;
   auto measure_basins = [&] {
@@ -770,7 +797,6 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
     return static_cast<int>(std::max_element(border[c].begin(), border[c].end()) -
                             border[c].begin());
   };
-  Groups group(cores);
   // Shallow cores' basins first, until none joins: one joins the basin it borders most unless
   // it is a sherd's (min_own_basin_voxels) beside a wide core. Its voxels go over, so that the
   // small deep cores below are judged by the basins they then have.
@@ -803,6 +829,7 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
                               (!own_neighbour || core_size[longest] >= sizes.min_wide_core_voxels);
     if (border[c][longest] > 0 && !narrow_sherd) group.join(c, longest);
   }
+  if (stages != nullptr) append_parts(cluster, tag, group, cores, stages->small_cores);
   // Levels are looked for among the parts of sherd-sized cores only (the others joined above).
   if (!voxel_rgb.empty() && std::count(sherd_sized.begin(), sherd_sized.end(), 1) >= 2) {
     std::vector<Vec3f> core_rgb(cores, Vec3f::Zero());
@@ -819,13 +846,8 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
     for (auto [a, b] : parts_without_neck(near, judged, tag, width, sherd_sized, core_rgb, radius))
       group.join(a, b);
   }
-  std::vector<int> part_of(cores, -1);
   std::vector<std::vector<std::uint32_t>> parts;
-  for (auto v : cluster) {
-    const int g = group.root(tag[v]);
-    if (part_of[g] < 0) part_of[g] = static_cast<int>(parts.size()), parts.emplace_back();
-    parts[part_of[g]].push_back(v);
-  }
+  append_parts(cluster, tag, group, cores, parts);
   return parts;
 }
 
@@ -1757,14 +1779,20 @@ std::vector<std::vector<std::uint32_t>> clusters(const std::vector<Vec3f>& point
   const auto euclidean = components(near, all, {});
   keep("clusters", euclidean);
   std::vector<std::vector<std::uint32_t>> parts;
+  ContactStages stages;
   for (const auto& cluster : euclidean) {
     auto split = params.contact_erosion_mm > 0.0
                      ? split_at_contacts(near, voxels.centres, voxel_rgb, cluster, tolerance,
-                                         params.contact_erosion_mm, sizes, distance, tag)
+                                         params.contact_erosion_mm, sizes, distance, tag,
+                                         steps != nullptr ? &stages : nullptr)
                      : std::vector<std::vector<std::uint32_t>>{cluster};
     for (auto& part : split) parts.push_back(std::move(part));
   }
-  if (params.contact_erosion_mm > 0.0) keep("contacts", parts);
+  if (params.contact_erosion_mm > 0.0) {
+    keep("basins", stages.basins);
+    keep("small cores", stages.small_cores);
+    keep("contacts", parts);
+  }
   if (params.contact_erosion_mm > 0.0 && !voxel_rgb.empty()) {
     // By clay first: a piece of a sherd cut off by colour from the neighbour it was flooded
     // with then joins its sherd across the unseen wall (tray 89 of seed 1: a rim band behind

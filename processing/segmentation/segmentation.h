@@ -101,8 +101,10 @@ struct Result {
 // The parts (point indices, sorted, as in Part::indices) after one step of the clustering, before
 // the size filters: what the tray benchmark reads to tell which step left a sherd split or merged.
 struct ClusteringStep {
-  // "clusters"; with contact splitting "contacts", with colours then "clay", "levels", "walls",
-  // "faces", "narrow", "folds"
+  // "clusters"; with contact splitting "basins" (each core's watershed part), "small cores" (the
+  // shallow and small cores' parts joined to their neighbours), "contacts" (one sherd's levels
+  // and parts without a neck joined), with colours then "clay", "levels", "walls", "faces",
+  // "narrow", "folds"
   std::string name;
   std::vector<std::vector<std::uint32_t>> parts;
 };

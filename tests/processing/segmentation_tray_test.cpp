@@ -104,12 +104,24 @@ TEST(ClusteringSteps, TouchingSherdsAreOneClusterAndApartAfterTheContacts) {
 
   std::vector<std::string> names;
   for (const auto& step : steps) names.push_back(step.name);
-  EXPECT_EQ(names, (std::vector<std::string>{"clusters", "contacts", "clay", "levels", "walls",
-                                             "faces", "narrow", "folds"}));
-  ASSERT_EQ(steps.size(), 8u);
+  EXPECT_EQ(names,
+            (std::vector<std::string>{"clusters", "basins", "small cores", "contacts", "clay",
+                                      "levels", "walls", "faces", "narrow", "folds"}));
+  ASSERT_EQ(steps.size(), 10u);
   const auto clustered = sherds_held(tray, steps[0].parts);
   EXPECT_GE(*std::max_element(clustered.begin(), clustered.end()), 2);
-  for (int held : sherds_held(tray, steps[1].parts)) EXPECT_LE(held, 1);
+  // Each stage of the contact split parts the clusters further or joins parts again: every
+  // voxel is in one part of each, and the basins are at least as many as the parts after them.
+  for (int held : sherds_held(tray, steps[3].parts)) EXPECT_LE(held, 1);
+  EXPECT_GE(steps[1].parts.size(), steps[2].parts.size());
+  EXPECT_GE(steps[2].parts.size(), steps[3].parts.size());
+  EXPECT_GE(steps[1].parts.size(), steps[0].parts.size());
+  for (std::size_t s = 1; s <= 3; ++s) {
+    std::size_t points = 0, clustered_points = 0;
+    for (const auto& part : steps[s].parts) points += part.size();
+    for (const auto& part : steps[0].parts) clustered_points += part.size();
+    EXPECT_EQ(points, clustered_points) << steps[s].name;
+  }
 
   std::set<std::vector<std::uint32_t>> last(steps.back().parts.begin(), steps.back().parts.end());
   std::set<std::vector<std::uint32_t>> found;
