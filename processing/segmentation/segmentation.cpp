@@ -997,6 +997,17 @@ std::vector<std::vector<std::uint32_t>> join_across_unseen_walls(
 // 9097 is no longer merged and 4 strips (7065, 9048, 11039, 11098) no longer split; 48 trays
 // moved by 0.1–0.3 % of precision and recall, either way.
 constexpr double kClayMinMm2 = 300.0;
+// See clays_of: a face peak's region this wide (mm) and bordering the rest of its part along less
+// than this share of its length is a sherd. Measured on bench_segmentation (a debug build, the
+// regions of 300 mm² or more of face peaks up to kFaceMaxWidthMm wide, over 20 runs of 100 trays:
+// 1, 1001, 5001, …, 15001 and 133001, 135001, …, 155001): of those wider than 10 mm, three were
+// another sherd than their part's (trays 135093, 145097, 147088, each merged), with borders of
+// 0.08–0.17 × their length; 24 one sherd's faces, 0.29–8.6 × (1.1 and 2.1 × for two other sherds
+// on one clay's line). Narrower face strips border their part down to 0.01 × (a level apart).
+// Those 20 runs: 1,965 → 1,968 trays of exact count, no tray made wrong, no other tray's parts
+// changed; six runs never run before (157001, 159001, …, 167001): 588 → 589 of 600, none wrong.
+constexpr double kTouchingMinWidthMm = 10.0;
+constexpr double kFaceMinBorderShare = 0.23;
 // Hue histogram bin and smoothing (Gaussian sigma, in bins): a voxel's hue, averaged over its
 // neighbourhood, scatters by about 0.004 within one clay.
 constexpr float kHueBin = 0.004f;
@@ -1086,10 +1097,30 @@ float face_offset_of(const Eigen::Vector2f& clay, const Eigen::Vector2f& h) {
   return face ? across : std::numeric_limits<float>::infinity();
 }
 
+// How long (mm) `region` borders the rest of `part` (region within part): the bands of voxels
+// either side with a neighbour on the other (see border_length_mm). `mark` is scratch space, all
+// zero, sized for all voxels.
+double border_with_rest_mm(const Graph& near, const std::vector<std::uint32_t>& part,
+                           const std::vector<std::uint32_t>& region, double radius,
+                           std::vector<std::uint8_t>& mark) {
+  for (auto v : part) mark[v] = 1;
+  for (auto v : region) mark[v] = 2;
+  std::size_t band_in = 0, band_out = 0;
+  for (auto v : part) {
+    const std::uint8_t other = mark[v] == 2 ? 1 : 2;
+    const bool beside = std::any_of(near[v].begin(), near[v].end(),
+                                    [&](std::uint32_t n) { return mark[n] == other; });
+    if (beside) ++(mark[v] == 2 ? band_in : band_out);
+  }
+  for (auto v : part) mark[v] = 0;
+  return border_length_mm(band_in, band_out, radius);
+}
+
 // Groups the voxels of a part (hues `h`, colour sums voxel_rgb[part[k]]) by clay: every voxel to
 // its nearest hue peak (peaks holding fewer than a quarter of `min_region` voxels dropped, the
 // smallest first), and each peak that is the face of another (see kFaceCone) to the clay whose
-// line it lies nearest — unless its largest region, `min_region` or more, is too wide for a face.
+// line it lies nearest — unless its largest region, `min_region` or more, is too wide for a face
+// or borders the rest of the part along too short a stretch for one.
 // Returns the number of clays; clay_of[k] is voxel k's, −1 for a mixture of two (see below).
 int clays_of(const std::vector<Eigen::Vector2f>& h, const std::vector<std::uint32_t>& part,
              const Graph& near, const std::vector<Vec3f>& centres, double radius,
@@ -1133,6 +1164,10 @@ int clays_of(const std::vector<Eigen::Vector2f>& h, const std::vector<std::uint3
   // wide; the second sherd of tray 5021 (merged with its neighbour, 0.005 off its clay's line)
   // 32.2 mm; a single sherd's hue spread in tray 7009 50.9 mm (its "clay" then too small to seed,
   // so no cut). Exact count of seed 5001 95 → 96 %, no other tray changed.
+  // A narrower region is a sherd too when it is wider than a wall of kTouchingMinWidthMm and
+  // borders the rest of the part along less than kFaceMinBorderShare of its length (its area over
+  // its width): a fracture face runs along its sherd's surface for all its length, a sherd touches
+  // its neighbour along a short stretch (see parts_without_neck).
   std::vector<std::uint8_t> mark;
   for (int p = 0; p < n; ++p) {
     if (is_clay[p] || held[p] < min_region) continue;
@@ -1143,8 +1178,14 @@ int clays_of(const std::vector<Eigen::Vector2f>& h, const std::vector<std::uint3
       if (region.size() > largest.size()) largest = std::move(region);
     }
     for (auto v : part) mark[v] = 0;
-    is_clay[p] = largest.size() >= min_region &&
-                 width_of(near, centres, largest, radius, mark) > kFaceMaxWidthMm;
+    if (largest.size() < min_region) continue;
+    const double width = width_of(near, centres, largest, radius, mark);
+    const double leaf = radius / kVoxelsPerTolerance;
+    const double length = static_cast<double>(largest.size()) * leaf * leaf / width;
+    is_clay[p] =
+        width > kFaceMaxWidthMm ||
+        (width > kTouchingMinWidthMm &&
+         border_with_rest_mm(near, part, largest, radius, mark) < kFaceMinBorderShare * length);
   }
   // A clay peak between two others, within kSameHue of the segment joining them, is their
   // mixture: the voxels whose neighbourhood straddles the contact of two clays.

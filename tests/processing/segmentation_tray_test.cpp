@@ -378,7 +378,11 @@ std::string case_name(const ::testing::TestParamInfo<TrayOfRun>& info) {
 // * by the levels' test: two sherds of one vessel, one leaning on the other, with an even step
 //   where they overlap, but along a border 0.28 and 0.37 × the narrower one's width (seed 23001's
 //   trays 23012, precision 0.808, and 23050, 0.913), where one sherd's levels meet along 1.4 ×
-//   or more.
+//   or more;
+// * by the colour split, a sherd 11.8–13.1 mm wide in a clay on its neighbour's line to grey,
+//   touching it briefly (along 0.08–0.17 × its length, where a fracture face runs along its sherd
+//   for all its length): seed 135001's tray 135093 (precision 0.969), seed 145001's tray 145097
+//   (0.977), seed 147001's tray 147088 (0.963).
 // Two sherds came out as one where the erosion left one of them no core 5 mm deep, its boundary
 // found inside it too (steep ridges and lips), so that the touching sherd's core took it: a shallow
 // core now stands for it (seed 25001's tray 25085, precision 0.956; seed 105001's tray 105017,
@@ -443,6 +447,9 @@ INSTANTIATE_TEST_SUITE_P(
                       TrayOfRun{"TwoAsOne_PartWiderThanAFace", 19001, 19070},
                       TrayOfRun{"TwoAsOne_ShortStepOfALeaningSherd", 23001, 23012},
                       TrayOfRun{"TwoAsOne_ShortStepOfALeaningSherd", 23001, 23050},
+                      TrayOfRun{"TwoAsOne_NarrowSherdTouchingBriefly", 135001, 135093},
+                      TrayOfRun{"TwoAsOne_NarrowSherdTouchingBriefly", 145001, 145097},
+                      TrayOfRun{"TwoAsOne_NarrowSherdTouchingBriefly", 147001, 147088},
                       TrayOfRun{"OneAsTwo_FractureFaceOfALeaningSherd", 1, 32},
                       TrayOfRun{"OneAsTwo_FractureFaceLevel", 1, 61},
                       TrayOfRun{"OneAsTwo_FractureFaceLevel", 7001, 7004},
@@ -579,6 +586,32 @@ TEST(LevelApart, ABandOfTheClayBehindAHighStepIsPartOfTheSherd) {
 // sherd's clay-to-grey line, 0.019 across it): a sherd of its own, as two sherds side by side.
 TEST(LevelApart, ABandOfAnotherClayBehindAHighStepStaysApart) {
   expect_two_sherds(sherd_and_band(sherd::Rgb8{170, 121, 82}), 1.0);
+}
+
+// A 35 × 38 mm sherd of clay (180, 120, 80) at 5 mm (x from −50 to −15 mm, y from −38 to 0 mm)
+// and a 13 mm wide band beside its upper edge at the same height (y from 0.5 to 13.5 mm, x from
+// `band_from` to `band_to`) in that clay's fracture face colour (see
+// AStripOfTheClayMixedWithGreyIsPartOfTheSherd). Truth: 1 the sherd, 2 the band.
+PlateScene band_beside_a_sherd(float band_from, float band_to) {
+  return plate_scene([&](float x, float y) {
+    if (x >= -50 && x <= -15 && y >= -38 && y <= 0) return Cell{1, 5.0f, {180, 120, 80}};
+    if (x >= band_from && x <= band_to && y >= 0.5f && y <= 13.5f)
+      return Cell{2, 5.0f, {126, 95, 75}};
+    return Cell{};
+  });
+}
+
+// A band 57 mm long touching the sherd along 12 mm of its edge (x from −27 to 30 mm): too wide a
+// contact for the erosion to part them, and in a colour on the sherd's line to grey, narrower
+// than kFaceMaxWidthMm; but it borders the sherd along a fifth of its length, as no fracture face
+// does: another clay's sherd (its hue on the first's line by chance).
+TEST(TwoClays, ANarrowSherdOnItsNeighboursLineToGreyTouchingItBrieflyIsASherd) {
+  expect_two_sherds(band_beside_a_sherd(-27.0f, 30.0f), 0.97);
+}
+
+// The band along the sherd's whole edge (x from −50 to −15 mm): the sherd's fracture face.
+TEST(TwoClays, AFaceColouredBandAlongTheWholeEdgeIsPartOfTheSherd) {
+  EXPECT_EQ(segment_scene(band_beside_a_sherd(-50.0f, -15.0f)).size(), 1u);
 }
 
 // A 22 × 30 mm sherd at 5 mm (x from 0.5 to 22.5 mm, y from −4 to 26 mm) with a ridge 3 mm wide
