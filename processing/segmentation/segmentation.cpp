@@ -1164,10 +1164,10 @@ int clays_of(const std::vector<Eigen::Vector2f>& h, const std::vector<std::uint3
   // wide; the second sherd of tray 5021 (merged with its neighbour, 0.005 off its clay's line)
   // 32.2 mm; a single sherd's hue spread in tray 7009 50.9 mm (its "clay" then too small to seed,
   // so no cut). Exact count of seed 5001 95 → 96 %, no other tray changed.
-  // A narrower region is a sherd too when it is wider than a wall of kTouchingMinWidthMm and
-  // borders the rest of the part along less than kFaceMinBorderShare of its length (its area over
-  // its width): a fracture face runs along its sherd's surface for all its length, a sherd touches
-  // its neighbour along a short stretch (see parts_without_neck).
+  // A narrower region is a sherd too when it is wider than kTouchingMinWidthMm and borders the
+  // rest of the part along less than kFaceMinBorderShare of its length (its area over its width):
+  // a fracture face runs along its sherd's surface for all its length, a sherd touches its
+  // neighbour along a short stretch (see parts_without_neck).
   std::vector<std::uint8_t> mark;
   for (int p = 0; p < n; ++p) {
     if (is_clay[p] || held[p] < min_region) continue;
