@@ -1784,7 +1784,8 @@ bool ring_foot_sole(const std::vector<std::uint32_t>& a, const std::vector<std::
   return quantile_of(sole, 0.75) - quantile_of(sole, 0.25) <= kFootSoleMaxIqrMm;
 }
 
-// `parts` (voxel lists) with the parts of each sherd folded over itself joined (see above).
+// `parts` (voxel lists) with the parts of each sherd folded over itself, or of a ring-footed base
+// lying upside down, joined (see above).
 std::vector<std::vector<std::uint32_t>> join_folded_parts(
     std::vector<std::vector<std::uint32_t>> parts, const std::vector<Vec3f>& centres,
     const std::vector<Vec3f>& voxel_rgb, double radius, double leaf) {
