@@ -683,7 +683,7 @@ TEST(Folds, ABandReachingFarPastTheSherdStaysApart) {
 }
 
 // A ring-footed base lying upside down, as a level sole beside a band a foot's height (3–7 mm)
-// lower that reaches 24 mm past it: together they cover about 0.84 of their convex hull (2,080 of
+// lower that reaches 24 mm past it: together they cover about 0.84 of their convex hull (2,096 of
 // 2,482 mm², by hand), under the fold's 0.875, over the sole's 0.82. One sherd.
 TEST(Folds, ALevelSoleBesideABandAFootLowerIsOneSherd) {
   expect_one_sherd(sherd_and_folded_band(-38, 2, -38, 26));
