@@ -434,10 +434,9 @@ std::string case_name(const ::testing::TestParamInfo<TrayOfRun>& info) {
 // * along its own sherd in the top view, hardly joined to the neighbour's part in 3-D
 //   (sherd 4 of seed 1001's tray 1027: 43 %; sherd 18 of seed 5001's tray 5094: 20 %; sherd 5
 //   of seed 27001's tray 27091: 25 %);
-// * not greyer than the neighbour's clay but 0.05 or more off it in hue, reached by the watershed
-//   through the contact before its own sherd reached it (sherd 2 of seed 133001's tray 133025:
-//   18 % of it; sherd 8 of seed 161001's tray 161048: 41 %; sherd 2 of seed 165001's tray
-//   165096: 44 %).
+// * not greyer than the neighbour's clay but 0.05 or more off it in hue, handed to it by the
+//   watershed (sherd 2 of seed 133001's tray 133025: 18 % of it) or as a small core's part
+//   (sherd 8 of seed 161001's tray 161048: 41 %; sherd 2 of seed 165001's tray 165096: 44 %).
 class FormerlyFailingTray : public ::testing::TestWithParam<TrayOfRun> {};
 
 TEST_P(FormerlyFailingTray, EachSherdIsFoundOnceAndWhole) {
