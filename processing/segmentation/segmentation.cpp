@@ -1299,7 +1299,8 @@ std::vector<std::vector<std::uint32_t>> split_by_clay(
 // watershed handed to the sherd it touches — joins the rest of its sherd: the part it borders
 // most in 3-D (neighbour pairs), when that is no other piece of the same split, the border has
 // kPieceMinPairsPerVoxel pairs per voxel of the piece or more (not a corner), and the two show one
-// clay (off_either_line below kPieceMaxOffClayLine: the same hue, or one the other's face).
+// clay (of_one_clay: hues closer than kNoNeckMaxHueDifference, or one the other's fracture face,
+// no wider than a face and within kPieceMaxOffClayLine of its clay's line).
 // Measured on bench_segmentation (a debug build printing every piece with the parts it borders and
 // their truth, 26 runs: 1, 1001, 5001, …, 15001 and 133001, …, 167001): of the pieces whose
 // longest border was with another part, the two of that part's sherd lay 0.0001 and 0.0003 off
@@ -1311,13 +1312,15 @@ constexpr double kPieceMinPairsPerVoxel = 0.1;
 
 std::vector<std::vector<std::uint32_t>> pieces_to_their_sherd(
     std::vector<std::vector<std::uint32_t>> parts, const std::vector<int>& split_from,
-    const Graph& near, const std::vector<Vec3f>& voxel_rgb) {
+    const Graph& near, const std::vector<Vec3f>& centres, const std::vector<Vec3f>& voxel_rgb,
+    double radius) {
   std::vector<int> part_of(near.size(), -1);
   for (std::size_t p = 0; p < parts.size(); ++p) {
     for (auto v : parts[p]) part_of[v] = static_cast<int>(p);
   }
   const std::vector<Vec3f> colour = colour_sums(parts, voxel_rgb);
   Groups group(static_cast<int>(parts.size()));
+  std::vector<std::uint8_t> inside(near.size(), 0);
   std::map<int, std::size_t> pairs;  // with each other part
   for (std::size_t p = 0; p < parts.size(); ++p) {
     if (split_from[p] < 0) continue;
@@ -1332,9 +1335,12 @@ std::vector<std::vector<std::uint32_t>> pieces_to_their_sherd(
     });
     if (most == pairs.end()) continue;
     const int q = most->first;
-    if (split_from[q] != split_from[p] &&
-        static_cast<double>(most->second) >= kPieceMinPairsPerVoxel * parts[p].size() &&
-        off_either_line(colour[p], colour[q]) < kPieceMaxOffClayLine)
+    if (split_from[q] == split_from[p] ||
+        static_cast<double>(most->second) < kPieceMinPairsPerVoxel * parts[p].size())
+      continue;
+    if (of_one_clay(colour[p], width_of(near, centres, parts[p], radius, inside), colour[q],
+                    width_of(near, centres, parts[q], radius, inside), kNoNeckMaxHueDifference,
+                    kPieceMaxOffClayLine))
       group.join(static_cast<int>(p), q);
   }
   return with_joined(std::move(parts), group);
@@ -1952,7 +1958,8 @@ std::vector<std::vector<std::uint32_t>> clusters(const std::vector<Vec3f>& point
     std::vector<int> split_from;
     parts = split_by_clay(std::move(parts), near, voxels.centres, voxel_rgb, tolerance, leaf,
                           clay_distance, tag, split_from);
-    parts = pieces_to_their_sherd(std::move(parts), split_from, near, voxel_rgb);
+    parts = pieces_to_their_sherd(std::move(parts), split_from, near, voxels.centres, voxel_rgb,
+                                  tolerance);
     keep("clay", parts);
     std::vector<int> cluster_of(voxels.centres.size(), -1);
     for (std::size_t c = 0; c < euclidean.size(); ++c) {
