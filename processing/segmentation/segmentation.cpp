@@ -1304,9 +1304,13 @@ std::vector<std::vector<std::uint32_t>> split_by_clay(
 // Measured on bench_segmentation (a debug build printing every piece with the parts it borders and
 // their truth, 26 runs: 1, 1001, 5001, …, 15001 and 133001, …, 167001): of the pieces whose
 // longest border was with another part, the two of that part's sherd lay 0.0001 and 0.0003 off
-// its line (tray 159041: a sherd left split), with 0.29 and 0.79 pairs per voxel; another sherd's
-// at 0.0079 (and, at 0.0034 and 0.0041, two sherds touching at a corner: 0.001 and 0.009 pairs per
-// voxel).
+// its clay's line (tray 159041: a sherd left split), with 0.29 and 0.79 pairs per voxel; another
+// sherd's 0.0079 off, and two sherds touching at a corner 0.0034 and 0.0041 off with 0.001 and
+// 0.009 pairs per voxel. A first draft judged by the line alone merged tray 239054's sherds: a
+// whole sherd cut from the one it had been merged with, 0.0015 off the line of a third sherd it
+// bordered, both wider than a face. With of_one_clay, over 74 runs (those 26, 169001, …, 239001
+// and 241001, …, 263001, never run before): 4 trays made right (159041, 189044, 231039, 247002),
+// none wrong.
 constexpr double kPieceMaxOffClayLine = 0.005;
 constexpr double kPieceMinPairsPerVoxel = 0.1;
 
@@ -1330,9 +1334,9 @@ std::vector<std::vector<std::uint32_t>> pieces_to_their_sherd(
         if (part_of[n] >= 0 && part_of[n] != static_cast<int>(p)) ++pairs[part_of[n]];
       }
     }
-    const auto most = std::max_element(pairs.begin(), pairs.end(), [](const auto& a, const auto& b) {
-      return a.second < b.second;
-    });
+    const auto most =
+        std::max_element(pairs.begin(), pairs.end(),
+                         [](const auto& a, const auto& b) { return a.second < b.second; });
     if (most == pairs.end()) continue;
     const int q = most->first;
     if (split_from[q] == split_from[p] ||
@@ -1952,8 +1956,9 @@ std::vector<std::vector<std::uint32_t>> clusters(const std::vector<Vec3f>& point
   }
   if (params.contact_erosion_mm > 0.0 && !voxel_rgb.empty()) {
     // By clay first: a piece of a sherd cut off by colour from the neighbour it was flooded
-    // with then joins its sherd across the unseen wall (tray 89 of seed 1: a rim band behind
-    // its step). join_across_unseen_walls reads `distance`, so the colour split gets its own.
+    // with then joins its sherd, where it borders it in 3-D (pieces_to_their_sherd) or across
+    // the unseen wall (tray 89 of seed 1: a rim band behind its step). join_across_unseen_walls
+    // reads `distance`, so the colour split gets its own.
     std::vector<float> clay_distance(voxels.centres.size());
     std::vector<int> split_from;
     parts = split_by_clay(std::move(parts), near, voxels.centres, voxel_rgb, tolerance, leaf,
