@@ -1,0 +1,311 @@
+#include "processing/segmentation/clay_split.h"
+
+#include <cmath>
+#include <limits>
+#include <map>
+
+#include "processing/segmentation/clay.h"
+#include "processing/segmentation/contacts.h"
+
+namespace sherd::segmentation::detail {
+
+namespace {
+
+// A piece that the colour split cut off from a part — a lobe or a level of one sherd that the
+// watershed handed to the sherd it touches — joins the rest of its sherd: the part it borders
+// most in 3-D (neighbour pairs), when that is no other piece of the same split, the border has
+// kPieceMinPairsPerVoxel pairs per voxel of the piece or more (not a corner), and the two show one
+// clay (of_one_clay: hues closer than kNoNeckMaxHueDifference, or one the other's fracture face,
+// no wider than a face and within kPieceMaxOffClayLine of its clay's line).
+// Measured on bench_segmentation (a debug build printing every piece with the parts it borders and
+// their truth, 26 runs: 1, 1001, 5001, …, 15001 and 133001, …, 167001): of the pieces whose
+// longest border was with another part, the two of that part's sherd lay 0.0001 and 0.0003 off
+// its clay's line (tray 159041: a sherd left split), with 0.29 and 0.79 pairs per voxel; another
+// sherd's 0.0079 off, and two sherds touching at a corner 0.0034 and 0.0041 off with 0.001 and
+// 0.009 pairs per voxel. A first draft judged by the line alone merged tray 239054's sherds: a
+// whole sherd cut from the one it had been merged with, 0.0015 off the line of a third sherd it
+// bordered, both wider than a face. With of_one_clay, over 74 runs (those 26, 169001, …, 239001
+// and 241001, …, 263001, never run before): 4 trays made right (159041, 189044, 231039, 247002),
+// none wrong.
+constexpr double kPieceMaxOffClayLine = 0.005;
+constexpr double kPieceMinPairsPerVoxel = 0.1;
+
+// A fracture face strip of one sherd that the watershed handed to the sherd it touches (a level
+// behind a step, reached through the contact before its own sherd) goes back to its sherd by
+// colour. In each part, a connected region of voxels that is no face of the part's clay (its
+// largest hue peak, see face_offset_of), covers kWallPartMinMm2 and is greyer than that clay (or
+// far off it, see below) goes to the part, bordering it in the top view, of whose clay it is a
+// face (the nearest to that clay's line). Only greyer regions, or regions far off the part's clay
+// (kFarFromClayHue): a fracture face is greyer than the clays around it, and a small sherd's own
+// hue scatters beyond kSameHue the other way (tray 5093 of seed 5001 lost a piece of its sherd to a
+// neighbour that way). Measured on bench_segmentation (100 trays each, seeds 1 / 1001 / 5001 /
+// 7001), split sherds 5 / 6 / 10 / 10 → 3 / 4 / 8 / 5 (trays 2 and 97 of seed 1), merged 0 / 0 / 1
+// / 0 unchanged; exact count 98 / 99 / 93 / 97 % unchanged; the least precision of seed 1 0.989 →
+// 0.995.
+// A region kFarFromClayHue or more off the part's clay is no scatter of it, greyer or not: it is
+// the other sherd's surface, or its fracture face beside a clay greyer than its own. The contact
+// split hands such a strip (a level behind a step, a narrow lobe without a core) to a touching
+// sherd when the watershed reaches it through the contact before its own sherd does, or when it
+// has a small core of its own whose part borders the touching sherd most. Measured with
+// a debug build on 26 runs (1, 1001, 5001, …, 15001 and 133001, 135001, …, 167001) before the
+// change: of 66 regions held back only by the greyer test, the 57 of the sherd they were to go to
+// lay 0.018–0.24 off the part's clay (42 of them 0.05 or more), the 8 of the part's own sherd
+// 0.009–0.047, one of a third sherd 0.020.
+// With the bound at 0.05 (and at 0.035 alike) 14 trays became right and none wrong; split sherds
+// 48 → 32, merged 26 and the exact counts unchanged.
+// Where the two sherds' clays lie so close that the strip is a face of both (tray 74 of seed 1:
+// clays 0.016 apart, the strip 0.004 off either's line), contact decides: a region of the part's
+// own faces (greyer than its clay beyond kSameHue) goes to another part of whose clay it is a
+// face too when it has more 3-D neighbour pairs with that part than with the rest of its own (tray
+// 74's strip: 772 against 563). Measured (100 trays each, seeds 1 / 1001 / 5001 / 7001 and the
+// held-out 9001 / 11001): 74 no longer split, counts otherwise unchanged; 14 trays gained
+// 0.15–0.4 % of precision and recall, one (11010) lost 0.17 %.
+// Last, a region off the part's clay (beyond kSameHue, face or not) of kWallPartMinMm2 or more goes
+// to another part when, together: it lies along that part in the top view more than along the
+// rest of its own (more of its voxels have a top-view neighbour there); its hue lies nearer that
+// part's clay or line to grey than its own part's (face_offset_of); and it is hardly joined to
+// the rest of its own part in 3-D, fewer than kRegionMaxPairsPerVoxel neighbour pairs with it per
+// voxel of the region. So go back a piece of a sherd that the watershed handed to its neighbour
+// through a corner (a raised edge behind an unseen wall) and a sherd's fracture face band that the
+// erosion left a core of its own, cut off from the sherd's surface by a step. A sherd's own face
+// strip between its surface and a touching sherd lies along both about equally in the top view,
+// along a crease of its surface in 3-D, and nearer its own clay's line. Measured on
+// bench_segmentation (seeds 1, 1001, 5001, …, 51001, 100 trays each; every region so moved in the
+// trays it made right or wrong, with a debug build, before either test): the 28 regions rightly
+// moved had 0.02–1.8 pairs per voxel (but a 57-voxel rest of one, 3.0) and, but for two (trays
+// 41074, 45050), a hue nearer the part they went to; of the 20 wrongly moved, 14 had 1.96–4.5
+// pairs per voxel and 5 of the other 6 a hue nearer their own part's line (43027's still goes).
+// Where the hue cannot tell — the region a face of neither clay (face_offset_of infinite for
+// both) — the top view decides alone, when the region lies along the other part kTopViewDecides ×
+// as much as along the rest of its own, or more. So goes back a sherd's fracture face that the
+// watershed left in the neighbour it touches, hanging under the sherd's edge with a gap in 3-D
+// where the crease was not seen: it lies along its sherd's outline for its whole length, along
+// the neighbour only where it touches it. Measured with a debug build on the trays of 74 runs
+// (1, 1001, 5001, …, 15001 and 133001, 135001, …, 263001) that left a piece of one sherd in
+// another: of the 40 pieces this test sees, 15 were held by the 3-D pairs; 5 others lay along
+// their own sherd 1.95–8.3 × as much as along their part but were held by the hue, a face of
+// neither clay. Another 4 were within 0.008 of both clays' lines, 1.1–7.7 ×; letting the top view
+// decide those as well moved the two halves of a sherd into each other (241089: two parts of one
+// sherd, clays 0.037 apart, each region within 0.0014 of both lines).
+// Over those 74 runs: 5 trays made right (13099, 163008, 179051, 225034, 249030), none wrong; of
+// the 39 trays changed, 38 gained 0.1–0.7 % of precision and recall, one (137014) lost 0.02 %. On
+// six runs never run before (265001, …, 275001): no count changed, two trays gained 0.1 %.
+constexpr double kRegionMaxPairsPerVoxel = 1.9;
+constexpr double kTopViewDecides = 1.5;
+constexpr float kFarFromClayHue = 0.05f;
+
+}  // namespace
+
+std::vector<std::vector<std::uint32_t>> split_by_clay(
+    std::vector<std::vector<std::uint32_t>> parts, const Graph& near,
+    const std::vector<Vec3f>& centres, const std::vector<Vec3f>& voxel_rgb, double radius,
+    double leaf, std::vector<float>& distance, std::vector<int>& tag,
+    std::vector<int>& split_from) {
+  const auto min_group = static_cast<std::size_t>(kClayMinMm2 / (leaf * leaf));
+  std::vector<std::vector<std::uint32_t>> result;
+  split_from.clear();
+  std::vector<std::uint8_t> mark(near.size(), 0);
+  for (std::size_t index = 0; index < parts.size(); ++index) {
+    auto& part = parts[index];
+    if (part.size() < 2 * min_group) {
+      result.push_back(std::move(part));
+      split_from.push_back(-1);
+      continue;
+    }
+    const std::vector<Eigen::Vector2f> h = neighbourhood_hues(part, near, voxel_rgb, mark);
+    std::vector<int> clay_of;
+    const int clays = clays_of(h, part, near, centres, radius, voxel_rgb, min_group, clay_of);
+    std::vector<std::pair<std::uint32_t, int>> seeds;
+    int seeded = 0;
+    for (int g = 0; g < clays && clays > 1; ++g) {
+      for (std::size_t k = 0; k < h.size(); ++k) mark[part[k]] = clay_of[k] == g;
+      std::vector<std::uint32_t> largest;
+      for (auto& region : components(near, part, mark)) {
+        if (region.size() > largest.size()) largest = std::move(region);
+      }
+      if (largest.size() < min_group) continue;
+      for (auto v : largest) seeds.emplace_back(v, seeded);
+      ++seeded;
+    }
+    for (auto v : part) mark[v] = 0;
+    if (seeded < 2) {
+      result.push_back(std::move(part));
+      split_from.push_back(-1);
+      continue;
+    }
+    geodesic_from(near, centres, part, seeds, distance, tag, mark);
+    std::vector<std::vector<std::uint32_t>> pieces(seeded);
+    for (auto v : part) pieces[tag[v]].push_back(v);
+    for (auto& piece : pieces) {
+      result.push_back(std::move(piece));
+      split_from.push_back(static_cast<int>(index));
+    }
+  }
+  return result;
+}
+
+std::vector<std::vector<std::uint32_t>> pieces_to_their_sherd(
+    std::vector<std::vector<std::uint32_t>> parts, const std::vector<int>& split_from,
+    const Graph& near, const std::vector<Vec3f>& centres, const std::vector<Vec3f>& voxel_rgb,
+    double radius) {
+  std::vector<int> part_of(near.size(), -1);
+  for (std::size_t p = 0; p < parts.size(); ++p) {
+    for (auto v : parts[p]) part_of[v] = static_cast<int>(p);
+  }
+  const std::vector<Vec3f> colour = colour_sums(parts, voxel_rgb);
+  Groups group(static_cast<int>(parts.size()));
+  std::vector<std::uint8_t> inside(near.size(), 0);
+  std::map<int, std::size_t> pairs;  // with each other part
+  for (std::size_t p = 0; p < parts.size(); ++p) {
+    if (split_from[p] < 0) continue;
+    pairs.clear();
+    for (auto v : parts[p]) {
+      for (auto n : near[v]) {
+        if (part_of[n] >= 0 && part_of[n] != static_cast<int>(p)) ++pairs[part_of[n]];
+      }
+    }
+    const auto most =
+        std::max_element(pairs.begin(), pairs.end(),
+                         [](const auto& a, const auto& b) { return a.second < b.second; });
+    if (most == pairs.end()) continue;
+    const int q = most->first;
+    if (split_from[q] == split_from[p] ||
+        static_cast<double>(most->second) < kPieceMinPairsPerVoxel * parts[p].size())
+      continue;
+    if (of_one_clay(colour[p], width_of(near, centres, parts[p], radius, inside), colour[q],
+                    width_of(near, centres, parts[q], radius, inside), kNoNeckMaxHueDifference,
+                    kPieceMaxOffClayLine))
+      group.join(static_cast<int>(p), q);
+  }
+  return with_joined(std::move(parts), group);
+}
+
+std::vector<std::vector<std::uint32_t>> faces_to_their_clay(
+    std::vector<std::vector<std::uint32_t>> parts, const Graph& near,
+    const std::vector<Vec3f>& centres, const std::vector<Vec3f>& voxel_rgb, double radius,
+    double leaf) {
+  const int n_parts = static_cast<int>(parts.size());
+  const auto min_region = static_cast<std::size_t>(kWallPartMinMm2 / (leaf * leaf));
+  const auto min_group = static_cast<std::size_t>(kClayMinMm2 / (leaf * leaf));
+  std::vector<std::uint8_t> mark(near.size(), 0);
+  std::vector<Eigen::Vector2f> clay(n_parts);
+  std::vector<std::uint8_t> coloured(n_parts, 0);
+  std::vector<std::vector<Eigen::Vector2f>> hues(n_parts);
+  for (int p = 0; p < n_parts; ++p) {
+    if (parts[p].size() < 2 * min_region) continue;
+    hues[p] = neighbourhood_hues(parts[p], near, voxel_rgb, mark);
+    std::vector<int> clay_of;
+    clays_of(hues[p], parts[p], near, centres, radius, voxel_rgb, min_group, clay_of, &clay[p]);
+    coloured[p] = 1;
+  }
+  TopView top(parts, centres, coloured);
+  if (top.empty()) return parts;
+  std::vector<int> found;
+  std::vector<int> moved_to(centres.size(), -1);
+  auto region_hue = [&](const std::vector<std::uint32_t>& region) {
+    Vec3f sum = Vec3f::Zero();
+    for (auto v : region) sum += voxel_rgb[v];
+    return hue(sum);
+  };
+  for (int p = 0; p < n_parts; ++p) {
+    if (!coloured[p]) continue;
+    const auto& part = parts[p];
+    for (std::size_t k = 0; k < part.size(); ++k)
+      mark[part[k]] = std::isinf(face_offset_of(clay[p], hues[p][k]));
+    for (const auto& region : components(near, part, mark)) {
+      if (region.size() < min_region) continue;
+      const Eigen::Vector2f h = region_hue(region);
+      std::vector<int> beside;
+      for (auto v : region) {
+        top.search(centres[v], radius, found);
+        for (auto f : found) {
+          const int q = top.part_of[top.voxel_at[f]];
+          if (q != p) add_once(beside, q);
+        }
+      }
+      int best = -1;
+      float best_offset = std::numeric_limits<float>::infinity();
+      for (int q : beside) {
+        const float offset = face_offset_of(clay[q], h);
+        if (offset < best_offset) best = q, best_offset = offset;
+      }
+      if (best >= 0 && (greyer(h, clay[p]) || (h - clay[p]).norm() >= kFarFromClayHue)) {
+        for (auto v : region) moved_to[v] = best;
+      }
+    }
+    for (auto v : part) mark[v] = 0;
+    // Faces of the part's own clay that touch another part more than the rest of their own, and
+    // are a face of that part's clay as well: the two clays lie too close for the hue to tell.
+    for (std::size_t k = 0; k < part.size(); ++k) {
+      mark[part[k]] = (hues[p][k] - clay[p]).norm() >= kSameHue &&
+                      std::isfinite(face_offset_of(clay[p], hues[p][k]));
+    }
+    for (const auto& region : components(near, part, mark)) {
+      if (region.size() < min_region) continue;
+      // Neighbour pairs with voxels outside the faces, by their part (−1: an uncoloured one).
+      std::map<int, std::size_t> touching;
+      for (auto v : region) {
+        for (auto n : near[v]) touching[top.part_of[n]] += !mark[n];
+      }
+      const Eigen::Vector2f h = region_hue(region);
+      int best = -1;
+      std::size_t most = touching[p];
+      for (auto [q, pairs] : touching) {
+        if (q >= 0 && q != p && pairs > most && std::isfinite(face_offset_of(clay[q], h)))
+          best = q, most = pairs;
+      }
+      if (best >= 0) {
+        for (auto v : region) moved_to[v] = best;
+      }
+    }
+    for (auto v : part) mark[v] = 0;
+    // Regions off the part's clay, not moved above, that lie along another part in the top view
+    // more than along the rest of their own and are hardly joined to it in 3-D.
+    for (std::size_t k = 0; k < part.size(); ++k)
+      mark[part[k]] = (hues[p][k] - clay[p]).norm() >= kSameHue && moved_to[part[k]] < 0;
+    for (const auto& region : components(near, part, mark)) {
+      if (region.size() < min_region) continue;
+      std::size_t joined = 0;  // 3-D neighbour pairs with the rest of the part
+      for (auto v : region) {
+        for (auto n : near[v]) joined += top.part_of[n] == p && !mark[n];
+      }
+      if (joined >= kRegionMaxPairsPerVoxel * region.size()) continue;
+      // Per part (p: the rest of it), the region's voxels that have a top-view neighbour in it.
+      std::map<int, std::size_t> bordering;
+      std::vector<int> beside;
+      for (auto v : region) {
+        top.search(centres[v], radius, found);
+        beside.clear();
+        for (auto f : found) {
+          const auto n = top.voxel_at[f];
+          const int q = top.part_of[n];
+          if (q != p || !mark[n]) add_once(beside, q);
+        }
+        for (int q : beside) ++bordering[q];
+      }
+      const Eigen::Vector2f h = region_hue(region);
+      const float own_offset = face_offset_of(clay[p], h);  // infinite when no face of its part
+      int best = -1;
+      std::size_t most = bordering[p];
+      for (auto [q, count] : bordering) {
+        if (q == p || count <= most) continue;
+        const float offset = face_offset_of(clay[q], h);
+        const bool hue_tells = std::isfinite(offset) || std::isfinite(own_offset);
+        if (offset < own_offset || (!hue_tells && count >= kTopViewDecides * bordering[p]))
+          best = q, most = count;
+      }
+      if (best >= 0) {
+        for (auto v : region) moved_to[v] = best;
+      }
+    }
+    for (auto v : part) mark[v] = 0;
+  }
+  std::vector<std::vector<std::uint32_t>> result(n_parts);
+  for (int p = 0; p < n_parts; ++p) {
+    for (auto v : parts[p]) result[moved_to[v] >= 0 ? moved_to[v] : p].push_back(v);
+  }
+  std::erase_if(result, [](const auto& r) { return r.empty(); });
+  return result;
+}
+
+}  // namespace sherd::segmentation::detail

@@ -1,0 +1,274 @@
+#include "processing/segmentation/contacts.h"
+
+#include <map>
+
+#include "processing/segmentation/clay.h"
+
+namespace sherd::segmentation::detail {
+
+namespace {
+
+// Pairs (a, b) of parts (by `tag`; core_rgb.size() of them) that are one sherd's levels, judged
+// by their border among the voxels `among` and by the colours of their cores (`core_rgb`, sums)
+// and their widths (`width`, mm).
+std::vector<std::pair<int, int>> levels_of_one_sherd(
+    const Graph& near, const std::vector<Vec3f>& centres, const std::vector<std::uint32_t>& among,
+    const std::vector<int>& tag, const std::vector<double>& width,
+    const std::vector<Vec3f>& core_rgb, double radius) {
+  const int parts = static_cast<int>(core_rgb.size());
+  std::vector<std::vector<std::size_t>> contacts(parts, std::vector<std::size_t>(parts, 0));
+  for (auto v : among) {
+    for (auto n : near[v]) contacts[tag[v]][tag[n]] += tag[n] > tag[v];
+  }
+  // Step pairs: neighbours in the top view (flattened onto the plate) that are not
+  // neighbours in 3-D, with their difference in height.
+  TopView top(centres, among);
+  std::vector<int> found;
+  const float radius2 = static_cast<float>(radius * radius);
+  std::vector<std::vector<std::vector<float>>> steps(parts, std::vector<std::vector<float>>(parts));
+  // The border's bands: the voxels of either part with a step pair to the other.
+  std::vector<std::vector<std::size_t>> band(parts, std::vector<std::size_t>(parts, 0));
+  std::vector<int> beside;
+  for (auto v : among) {
+    top.search(centres[v], radius, found);
+    beside.clear();
+    for (auto f : found) {
+      const auto n = top.voxel_at[f];
+      if (tag[n] == tag[v] || (centres[n] - centres[v]).squaredNorm() <= radius2) continue;
+      add_once(beside, tag[n]);
+      if (tag[n] > tag[v])
+        steps[tag[v]][tag[n]].push_back(std::abs(centres[n].z() - centres[v].z()));
+    }
+    for (int b : beside) ++band[tag[v]][b];
+  }
+  std::vector<std::pair<int, int>> levels;
+  for (int a = 0; a < parts; ++a) {
+    for (int b = a + 1; b < parts; ++b) {
+      auto& heights = steps[a][b];
+      const double border_mm = border_length_mm(band[a][b], band[b][a], radius);
+      const bool wall = level_wall(heights) &&
+                        contacts[a][b] <= kLevelMaxContactShare * heights.size() &&
+                        border_mm >= kLevelMinBorderShare * std::min(width[a], width[b]);
+      const bool one_clay = of_one_clay(core_rgb[a], width[a], core_rgb[b], width[b],
+                                        kLevelMaxHueDifference, kLevelFaceMaxOffClayLine);
+      if (wall && one_clay) levels.emplace_back(a, b);
+    }
+  }
+  return levels;
+}
+
+// Pairs (a, b) of parts (by `tag`, widths `width` in mm) with no neck between them, among the
+// voxels `among` of the parts marked in `judged`.
+std::vector<std::pair<int, int>> parts_without_neck(
+    const Graph& near, const std::vector<std::uint32_t>& among, const std::vector<int>& tag,
+    const std::vector<double>& width, const std::vector<std::uint8_t>& judged,
+    const std::vector<Vec3f>& core_rgb, double radius) {
+  const int parts = static_cast<int>(core_rgb.size());
+  std::vector<std::vector<std::size_t>> band(parts, std::vector<std::size_t>(parts, 0));
+  std::vector<int> beside;
+  for (auto v : among) {
+    beside.clear();
+    for (auto n : near[v]) {
+      if (tag[n] != tag[v] && judged[tag[n]]) add_once(beside, tag[n]);
+    }
+    for (int b : beside) ++band[tag[v]][b];
+  }
+  std::vector<std::pair<int, int>> pairs;
+  for (int a = 0; a < parts; ++a) {
+    for (int b = a + 1; b < parts; ++b) {
+      if (!judged[a] || !judged[b] || band[a][b] == 0) continue;
+      const double border_mm = border_length_mm(band[a][b], band[b][a], radius);
+      const double narrower_mm = std::min(width[a], width[b]);
+      const bool one_clay = of_one_clay(core_rgb[a], width[a], core_rgb[b], width[b],
+                                        kNoNeckMaxHueDifference, kFaceMaxOffClayLine);
+      if (border_mm >= kNoNeckMinBorderShare * narrower_mm && one_clay) pairs.emplace_back(a, b);
+    }
+  }
+  return pairs;
+}
+
+// The voxels of `cluster` as parts by the group of their basin (`tag`), appended to `parts`.
+void append_parts(const std::vector<std::uint32_t>& cluster, const std::vector<int>& tag,
+                  Groups& group, int groups, std::vector<std::vector<std::uint32_t>>& parts) {
+  std::vector<int> part_of(groups, -1);
+  for (auto v : cluster) {
+    const int g = group.root(tag[v]);
+    if (part_of[g] < 0) part_of[g] = static_cast<int>(parts.size()), parts.emplace_back();
+    parts[part_of[g]].push_back(v);
+  }
+}
+
+}  // namespace
+
+bool level_wall(std::vector<float>& heights) {
+  if (heights.size() < kLevelMinStepPairs) return false;
+  const double q10 = quantile_of(heights, 0.1), q90 = quantile_of(heights, 0.9);
+  return q10 >= kLevelStepMinMm && q90 <= kLevelStepMaxMm && q90 <= kLevelStepMaxSpread * q10;
+}
+
+std::vector<std::vector<std::uint32_t>> split_at_contacts(
+    const Graph& near, const std::vector<Vec3f>& centres, const std::vector<Vec3f>& voxel_rgb,
+    const std::vector<std::uint32_t>& cluster, double radius, double erosion,
+    const CoreSizes& sizes, std::vector<float>& distance, std::vector<int>& tag,
+    ContactStages* stages) {
+  std::vector<std::uint8_t> core(near.size(), 0);
+  geodesic_from(near, centres, cluster, boundary_of(near, centres, cluster, radius, core), distance,
+                tag, core);
+  for (auto v : cluster) core[v] = distance[v] >= erosion;
+  std::vector<std::pair<std::uint32_t, int>> seeds;
+  std::vector<std::size_t> core_size;
+  for (const auto& c : components(near, cluster, core)) {
+    if (c.size() < sizes.min_core_voxels) continue;
+    for (auto v : c) seeds.emplace_back(v, static_cast<int>(core_size.size()));
+    core_size.push_back(c.size());
+  }
+  // Shallow cores (see kShallowCoreShare): regions that deep which hold no deep core.
+  const int deep_cores = static_cast<int>(core_size.size());
+  for (auto v : cluster) core[v] = distance[v] >= kShallowCoreShare * erosion;
+  for (auto [v, c] : seeds) core[v] = 2;
+  for (const auto& c : components(near, cluster, core)) {
+    if (c.size() < sizes.min_own_core_voxels ||
+        std::any_of(c.begin(), c.end(), [&](std::uint32_t v) { return core[v] == 2; }))
+      continue;
+    for (auto v : c) seeds.emplace_back(v, static_cast<int>(core_size.size()));
+    core_size.push_back(c.size());
+  }
+  for (auto v : cluster) core[v] = 0;  // `core` is sized for all voxels; leave it clean
+  const int cores = static_cast<int>(core_size.size());
+  if (cores < 2) {
+    if (stages != nullptr) {
+      stages->basins.push_back(cluster);
+      stages->small_cores.push_back(cluster);
+    }
+    return {cluster};
+  }
+  flood_from_cores(near, cluster, seeds, distance, tag);
+  Groups group(cores);
+  if (stages != nullptr) append_parts(cluster, tag, group, cores, stages->basins);
+  std::vector<std::vector<std::size_t>> border;  // neighbour pairs between basins
+  std::vector<std::size_t> basin_size;
+  auto measure_basins = [&] {
+    border.assign(cores, std::vector<std::size_t>(cores, 0));
+    basin_size.assign(cores, 0);
+    for (auto v : cluster) {
+      ++basin_size[tag[v]];
+      for (auto n : near[v]) border[tag[v]][tag[n]] += tag[n] != tag[v];
+    }
+  };
+  auto longest_border = [&](int c) {
+    return static_cast<int>(std::max_element(border[c].begin(), border[c].end()) -
+                            border[c].begin());
+  };
+  // Shallow cores' basins first, until none joins: one joins the basin it borders most unless
+  // it is a sherd's (min_own_basin_voxels) beside a wide core. Its voxels go over, so that the
+  // small deep cores below are judged by the basins they then have.
+  for (bool joined = true; joined;) {
+    measure_basins();
+    joined = false;
+    for (int c = deep_cores; c < cores; ++c) {
+      const int longest = longest_border(c);
+      if (border[c][longest] == 0 || (basin_size[c] >= sizes.min_own_basin_voxels &&
+                                      core_size[longest] >= sizes.min_wide_core_voxels))
+        continue;
+      group.join(c, longest);
+      joined = true;
+    }
+    if (joined)
+      for (auto v : cluster) tag[v] = group.root(tag[v]);
+  }
+  // A small core's basin joins the neighbouring basin it has most neighbour pairs with — for the
+  // far side of a step, mostly the only one: the rest of its sherd. A large basin around a small
+  // core is a sherd too narrow for the erosion to leave much of it, touching a wider one.
+  std::vector<std::uint8_t> sherd_sized(cores);
+  for (int c = 0; c < cores; ++c) {
+    // A shallow core that still has a part stays apart (judged above).
+    sherd_sized[c] = c < deep_cores ? core_size[c] >= sizes.min_own_core_voxels : basin_size[c] > 0;
+    if (sherd_sized[c] || c >= deep_cores) continue;
+    const int longest = longest_border(c);
+    const bool own_neighbour = core_size[longest] >= sizes.min_own_core_voxels ||
+                               basin_size[longest] >= sizes.min_own_basin_voxels;
+    const bool narrow_sherd = basin_size[c] >= sizes.min_own_basin_voxels &&
+                              (!own_neighbour || core_size[longest] >= sizes.min_wide_core_voxels);
+    if (border[c][longest] > 0 && !narrow_sherd) group.join(c, longest);
+  }
+  if (stages != nullptr) append_parts(cluster, tag, group, cores, stages->small_cores);
+  // Levels are looked for among the parts of sherd-sized cores only (the others joined above).
+  if (!voxel_rgb.empty() && std::count(sherd_sized.begin(), sherd_sized.end(), 1) >= 2) {
+    std::vector<Vec3f> core_rgb(cores, Vec3f::Zero());
+    for (auto [v, c] : seeds) core_rgb[c] += voxel_rgb[v];
+    std::vector<std::uint32_t> judged;
+    std::vector<double> width(cores, 0.0);  // twice the deepest voxel's distance from the boundary
+    for (auto v : cluster) {
+      if (!sherd_sized[tag[v]]) continue;
+      judged.push_back(v);
+      width[tag[v]] = std::max(width[tag[v]], 2.0 * distance[v]);
+    }
+    for (auto [a, b] : levels_of_one_sherd(near, centres, judged, tag, width, core_rgb, radius))
+      group.join(a, b);
+    for (auto [a, b] : parts_without_neck(near, judged, tag, width, sherd_sized, core_rgb, radius))
+      group.join(a, b);
+  }
+  std::vector<std::vector<std::uint32_t>> parts;
+  append_parts(cluster, tag, group, cores, parts);
+  return parts;
+}
+
+std::vector<std::vector<std::uint32_t>> join_across_unseen_walls(
+    std::vector<std::vector<std::uint32_t>> parts, const std::vector<Vec3f>& centres,
+    const std::vector<Vec3f>& voxel_rgb, const std::vector<float>& depth, double radius,
+    double erosion, const CoreSizes& sizes, double leaf) {
+  const int n_parts = static_cast<int>(parts.size());
+  const auto min_voxels = static_cast<std::size_t>(kWallPartMinMm2 / (leaf * leaf));
+  std::vector<std::uint8_t> cored(n_parts, 0);
+  std::vector<int> narrow;
+  for (int p = 0; p < n_parts; ++p) {
+    std::size_t core = 0, shallow_core = 0;
+    for (auto v : parts[p]) {
+      core += depth[v] >= erosion;
+      shallow_core += depth[v] >= kShallowCoreShare * erosion;
+    }
+    cored[p] = core >= sizes.min_core_voxels || (parts[p].size() >= sizes.min_own_basin_voxels &&
+                                                 shallow_core >= sizes.min_own_core_voxels);
+    if (!cored[p] && parts[p].size() >= min_voxels) narrow.push_back(p);
+  }
+  if (narrow.empty()) return parts;
+  TopView top(parts, centres, cored);  // among the cored parts' voxels
+  if (top.empty()) return parts;
+  std::vector<int> found;
+  const float radius2 = static_cast<float>(radius * radius);
+  const std::vector<Vec3f> colour = colour_sums(parts, voxel_rgb);
+  std::vector<int> joins(n_parts, -1);
+  std::vector<int> beside;  // the cored parts a voxel borders across a step
+  for (int p : narrow) {
+    std::map<int, std::size_t> bordering, contacts;  // per cored part
+    std::map<int, std::vector<float>> steps;         // step heights, per cored part
+    for (auto v : parts[p]) {
+      top.search(centres[v], radius, found);
+      beside.clear();
+      for (auto f : found) {
+        const auto n = top.voxel_at[f];
+        const int q = top.part_of[n];
+        if ((centres[n] - centres[v]).squaredNorm() <= radius2) {
+          ++contacts[q];
+        } else {
+          steps[q].push_back(std::abs(centres[n].z() - centres[v].z()));
+          add_once(beside, q);
+        }
+      }
+      for (int q : beside) ++bordering[q];
+    }
+    float best = kWallMaxOffClayLine;
+    for (const auto& [q, n] : bordering) {
+      const float off = off_either_line(colour[p], colour[q]);
+      if ((n < kWallMinBorderShare * parts[p].size() && !level_wall(steps[q])) ||
+          contacts[q] > kLevelMaxContactShare * steps[q].size() || off >= best)
+        continue;
+      best = off;
+      joins[p] = q;
+    }
+  }
+  // Narrow parts join cored ones only, so one pass moves every voxel to its final part.
+  return with_joined(std::move(parts), joins);
+}
+
+}  // namespace sherd::segmentation::detail
