@@ -18,7 +18,9 @@ struct Params {
   double cluster_tolerance_mm = 2.5;
   // Touching sherds are split where the cluster, eroded by this depth from its boundary
   // (measured along the surface), falls apart into sherd-sized cores: contacts shorter than
-  // about twice this are cut, so a sherd must be wider than that everywhere. 0: no splitting.
+  // about twice this are cut, so a sherd must be wider than that everywhere, or hold a lobe of
+  // its own: a depth 0.8 × this that falls by 0.6 × this to the contact (contacts.cpp,
+  // kLobeMinTopShare). 0: no splitting.
   // Off by default: on a tray seen from above (bench_segmentation) 5 mm splits touching sherds,
   // but on the station's fused frame scans, which show both faces of a standing sherd, each face
   // erodes to a core of its own and sherds come out split in two. With it, a narrow piece the
