@@ -106,11 +106,11 @@ std::vector<std::pair<int, int>> parts_without_neck(
 // the narrow sherds merged for want of a core had lobes 3.98–4.95 mm deep falling 3.1–4.6 mm to
 // the contact; the three first made right (trays 133062, 137014, 195091) lay 0.014–0.018 off the
 // line of the part they had joined, three sherds' own lobes (trays 33, 1025, 5056) 0.0001–0.0011
-// off their sherd's. Over 80 runs of 100 trays
-// (those 10 and 70 more), beside the binary without lobes in the same session: 17 trays made
-// right, 7 wrong; merged sherds 72 → 69, split 100 → 93, exact count 7,896 → 7,899. Six runs
-// never run before (277001, …, 287001): 2 made right, 1 wrong, exact count 588 of 600 both.
-// Without the sherd's-area exception, over the 80 runs: 17 made right, 9 wrong.
+// off their sherd's. Over 80 runs of 100 trays (those 10 and 70 more), beside the binary
+// without lobes in the same session: 17 trays made right, 7 wrong; merged sherds 72 → 69, split
+// 100 → 93, exact count 7,896 → 7,899. Six runs never run before (277001, …, 287001): 2 made
+// right, 1 wrong, exact count 588 of 600 both. Without the sherd's-area exception, over the 80
+// runs: 17 made right, 9 wrong.
 constexpr double kLobeMinTopShare = 0.8;
 constexpr double kLobeMinDynamicShare = 0.6;
 constexpr double kLobeMinCoreShare = 2.0;
