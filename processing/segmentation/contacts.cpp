@@ -119,8 +119,8 @@ constexpr double kLobeMinCoreShare = 2.0;
 // `min_top` deep or more, that falls `min_dynamic` or more to that saddle and holds `min_voxels`
 // or more, deepest top first. One sweep in order of decreasing depth joins each voxel to the
 // components of its neighbours already swept (union-find); where two meet, the one with the lower
-// top ends at that saddle. The cluster's deepest maximum has no saddle. `local` is scratch space,
-// all −1, sized for all voxels.
+// top ends at that saddle. The cluster's deepest maximum has no saddle. `cluster` is a whole
+// component of `near`; `local` is scratch space sized for all voxels.
 std::vector<std::vector<std::uint32_t>> prominent_lobes(
     const Graph& near, const std::vector<std::uint32_t>& cluster, const std::vector<float>& depth,
     double min_top, double min_dynamic, std::size_t min_voxels, std::vector<int>& local) {
@@ -144,7 +144,7 @@ std::vector<std::vector<std::uint32_t>> prominent_lobes(
     parent[k] = static_cast<int>(k), top[k] = level, members[k] = {cluster[k]};
     for (auto neighbour : near[cluster[k]]) {
       const int j = local[neighbour];
-      if (j < 0 || parent[j] < 0) continue;
+      if (parent[j] < 0) continue;  // not swept yet
       int a = root(static_cast<int>(k)), b = root(j);
       if (a == b) continue;
       if (top[a] < top[b]) std::swap(a, b);  // b ends here
@@ -156,7 +156,6 @@ std::vector<std::vector<std::uint32_t>> prominent_lobes(
       parent[b] = a;
     }
   }
-  for (auto v : cluster) local[v] = -1;
   std::sort(lobes.begin(), lobes.end(),
             [](const auto& a, const auto& b) { return a.first > b.first; });
   std::vector<std::vector<std::uint32_t>> voxels;
@@ -204,10 +203,9 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
   const int lobes_begin = static_cast<int>(core_size.size());
   for (auto v : cluster) core[v] = 0;
   for (auto [v, c] : seeds) core[v] = 1;
-  std::vector<int> local(near.size(), -1);
   for (auto& lobe : prominent_lobes(near, cluster, distance, kLobeMinTopShare * erosion,
                                     kLobeMinDynamicShare * erosion,
-                                    kLobeMinCoreShare * sizes.min_own_core_voxels, local)) {
+                                    kLobeMinCoreShare * sizes.min_own_core_voxels, tag)) {
     if (std::any_of(lobe.begin(), lobe.end(), [&](std::uint32_t v) { return core[v] != 0; }))
       continue;
     for (auto v : lobe) seeds.emplace_back(v, static_cast<int>(core_size.size())), core[v] = 1;

@@ -135,9 +135,9 @@ struct ContactStages {
   std::vector<std::vector<std::uint32_t>> basins, small_cores;
 };
 
-// `cluster` (voxels) split at the contacts of touching sherds, as described above; `distance` and
-// `tag` are scratch space sized for all voxels, `stages` (may be null) receives the parts after
-// the first stages.
+// `cluster` (voxels, a whole component of `near`) split at the contacts of touching sherds, as
+// described above; `distance` and `tag` are scratch space sized for all voxels, `stages` (may be
+// null) receives the parts after the first stages.
 std::vector<std::vector<std::uint32_t>> split_at_contacts(
     const Graph& near, const std::vector<Vec3f>& centres, const std::vector<Vec3f>& voxel_rgb,
     const std::vector<std::uint32_t>& cluster, double radius, double erosion,
