@@ -447,6 +447,12 @@ std::string case_name(const ::testing::TestParamInfo<TrayOfRun>& info) {
 // * a fracture face of neither part's clay, hanging under its sherd's edge with a gap in 3-D,
 //   lying along its own sherd in the top view 5.0 and 8.3 × as much as along the neighbour's part
 //   (sherd 11 of seed 13001's tray 13099: 16 % of it; sherd 4 of seed 249001's tray 249030: 15 %).
+// * a fracture face of no face of the part's clay but of its own sherd's, whose colour sum the
+//   band it shares with the rest of the part (the part's voxels whose neighbourhood hue straddles
+//   the crease) pulled off its own clay's line, 0.019 and 0.017 across where faces lie within
+//   0.015: its inside decides (sherd 8 of seed 215001's tray 215016: 22 % of it; sherd 12 of seed
+//   225001's tray 225054: 23 %; sherd 5 of seed 273001's tray 273030, in another cluster than the
+//   rest of its sherd: 19 %).
 // A narrow sherd touching a wider one, with no core of its own (its region 3 mm deep reaches into
 // the wider sherd, or is too small) but a lobe of the depth that falls 3.6–4.6 mm to the contact,
 // of a clay 0.014–0.018 off the other's line (sherd 4 of seed 133001's tray 133062; sherd 4 of
@@ -511,6 +517,9 @@ INSTANTIATE_TEST_SUITE_P(
                       TrayOfRun{"PieceInTheNeighbour_CutOffByColour", 231001, 231039},
                       TrayOfRun{"PieceInTheNeighbour_FaceOfNeitherClay", 13001, 13099},
                       TrayOfRun{"PieceInTheNeighbour_FaceOfNeitherClay", 249001, 249030},
+                      TrayOfRun{"PieceInTheNeighbour_SumPulledOffTheLine", 215001, 215016},
+                      TrayOfRun{"PieceInTheNeighbour_SumPulledOffTheLine", 225001, 225054},
+                      TrayOfRun{"PieceInTheNeighbour_SumPulledOffTheLine", 273001, 273030},
                       TrayOfRun{"OneAsTwo_HalvesOnEachOthersLine", 241001, 241089},
                       TrayOfRun{"TwoAsOne_NarrowSherdWithALobe", 133001, 133062},
                       TrayOfRun{"TwoAsOne_NarrowSherdWithALobe", 137001, 137014},
