@@ -250,13 +250,14 @@ std::vector<std::vector<std::uint32_t>> faces_to_their_clay(
       int best = face_of_beside(region_hue(region));
       if (best < 0) {  // the region's inside, without the band that mixes with the rest of the part
         Vec3f inside = Vec3f::Zero();
+        std::size_t inside_voxels = 0;
         for (auto v : region) {
           const bool in = std::all_of(near[v].begin(), near[v].end(), [&](std::uint32_t n) {
             return top.part_of[n] != p || mark[n];
           });
-          if (in) inside += voxel_rgb[v];
+          if (in) inside += voxel_rgb[v], ++inside_voxels;
         }
-        if (inside.x() > 0.0f) best = face_of_beside(hue(inside));
+        if (inside_voxels > 0) best = face_of_beside(hue(inside));
       }
       if (best >= 0) {
         for (auto v : region) moved_to[v] = best;
