@@ -1,6 +1,7 @@
 #include "processing/segmentation/contacts.h"
 
 #include <algorithm>
+#include <limits>
 #include <map>
 #include <numeric>
 
@@ -131,9 +132,13 @@ std::vector<std::vector<std::uint32_t>> prominent_lobes(
   std::sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
     return depth[cluster[a]] > depth[cluster[b]];
   });
-  std::vector<int> parent(n, -1);                      // −1: not swept yet
-  std::vector<float> top(n);                           // per component root
-  std::vector<std::vector<std::uint32_t>> members(n);  // per component root
+  std::vector<int> parent(n, -1);  // −1: not swept yet
+  std::vector<float> top(n);       // per component root
+  // Each component's voxels as a linked list (first, last, count per root; next per voxel): a
+  // merge splices the smaller list after the larger in constant time, with no allocation per
+  // voxel.
+  constexpr std::uint32_t kEnd = std::numeric_limits<std::uint32_t>::max();
+  std::vector<std::uint32_t> first(n), last(n), next(n, kEnd), count(n);
   auto root = [&](int a) {
     while (parent[a] != a) a = parent[a] = parent[parent[a]];
     return a;
@@ -141,18 +146,25 @@ std::vector<std::vector<std::uint32_t>> prominent_lobes(
   std::vector<std::pair<float, std::vector<std::uint32_t>>> lobes;  // (top, voxels)
   for (auto k : order) {
     const float level = depth[cluster[k]];
-    parent[k] = static_cast<int>(k), top[k] = level, members[k] = {cluster[k]};
+    parent[k] = static_cast<int>(k), top[k] = level, first[k] = last[k] = k, count[k] = 1;
     for (auto neighbour : near[cluster[k]]) {
       const int j = local[neighbour];
       if (parent[j] < 0) continue;  // not swept yet
       int a = root(static_cast<int>(k)), b = root(j);
       if (a == b) continue;
       if (top[a] < top[b]) std::swap(a, b);  // b ends here
-      if (top[b] >= min_top && top[b] - level >= min_dynamic && members[b].size() >= min_voxels)
-        lobes.emplace_back(top[b], members[b]);
-      if (members[a].size() < members[b].size()) std::swap(members[a], members[b]);
-      members[a].insert(members[a].end(), members[b].begin(), members[b].end());
-      members[b].clear();
+      if (top[b] >= min_top && top[b] - level >= min_dynamic && count[b] >= min_voxels) {
+        std::vector<std::uint32_t> lobe;
+        lobe.reserve(count[b]);
+        for (auto i = first[b]; i != kEnd; i = next[i]) lobe.push_back(cluster[i]);
+        lobes.emplace_back(top[b], std::move(lobe));
+      }
+      if (count[a] >= count[b]) {
+        next[last[a]] = first[b], last[a] = last[b];
+      } else {
+        next[last[b]] = first[a], first[a] = first[b];
+      }
+      count[a] += count[b];
       parent[b] = a;
     }
   }
