@@ -27,12 +27,13 @@ struct Params {
   // erosion leaves no core, cut off from its sherd by a wall too steep to be seen from above (the
   // raised edge of a leaning sherd), joins the sherd it borders in the top view in its clay; two
   // parts of one hue with no neck between them are one sherd; a part of several clays is split
-  // by colour; a narrow level of a sherd behind a step higher than the clustering distance joins
-  // it by the step and colour; a sherd's fracture face strip, or a piece of it lying along it in
-  // the top view, that went to the sherd it touches goes back by colour; and a part left narrower
-  // in the top view than any sherd lying on the plate shows (a strip seen almost edge-on) joins the
-  // part of its clay beside it (the steps in contacts.h, clay_split.h and top_view_joins.h, their
-  // measurements beside their constants).
+  // by colour; a level of a sherd behind a step higher than the clustering distance joins it by
+  // the step and colour (a narrow band of its clay, or a wider level of its very hue); a sherd's
+  // fracture face strip, or a piece of it lying along it in the top view, that went to the sherd
+  // it touches goes back by colour; and a part left narrower in the top view than any sherd lying
+  // on the plate shows (a strip seen almost edge-on) joins the part of its clay beside it (the
+  // steps in contacts.h, clay_split.h and top_view_joins.h, their measurements beside their
+  // constants).
   double contact_erosion_mm = 0.0;
   // A core left by that erosion stands for a sherd of its own only when it covers at least this
   // much of the plate; a smaller one (but at least what a sherd of min_extent_mm keeps) is mostly
