@@ -30,10 +30,10 @@ struct Params {
   // by colour; a level of a sherd behind a step higher than the clustering distance joins it by
   // the step and colour (a narrow band of its clay, or a wider level of its very hue); a sherd's
   // fracture face strip, or a piece of it lying along it in the top view, that went to the sherd
-  // it touches goes back by colour; and a part left narrower in the top view than any sherd lying
-  // on the plate shows (a strip seen almost edge-on) joins the part of its clay beside it (the
-  // steps in contacts.h, clay_split.h and top_view_joins.h, their measurements beside their
-  // constants).
+  // it touches goes back by colour (and, where the colour fits both, by the side its slope
+  // faces); and a part left narrower in the top view than any sherd lying on the plate shows (a
+  // strip seen almost edge-on) joins the part of its clay beside it (the steps in contacts.h,
+  // clay_split.h and top_view_joins.h, their measurements beside their constants).
   double contact_erosion_mm = 0.0;
   // A core left by that erosion stands for a sherd of its own only when it covers at least this
   // much of the plate; a smaller one (but at least what a sherd of min_extent_mm keeps) is mostly
