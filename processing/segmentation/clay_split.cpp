@@ -150,8 +150,13 @@ std::vector<int> uphill_parts(TopView& top, const std::vector<Vec3f>& centres) {
   std::unordered_map<std::int64_t, std::vector<int>> parts_in;
   for (auto v : top.voxel_at) add_once(parts_in[cell_of(centres[v], 0, 0)], top.part_of[v]);
   std::vector<int> uphill(centres.size(), -1), found;
-  std::map<int, double> side;     // per part: its voxels' summed offsets downhill
-  std::map<int, double> nearest;  // per part: squared top-view distance
+  // Per part within kSideRadiusMm (a few): its voxels' summed offsets downhill and its nearest
+  // voxel's squared top-view distance.
+  struct Side {
+    int part;
+    double offsets, nearest;
+  };
+  std::vector<Side> sides;
   for (auto v : top.voxel_at) {
     const int p = top.part_of[v];
     const Vec3f& c = centres[v];
@@ -184,20 +189,23 @@ std::vector<int> uphill_parts(TopView& top, const std::vector<Vec3f>& centres) {
     if (!gradient.allFinite() || gradient.norm() < kSteepSlope) continue;
     const Eigen::Vector2d downhill = -gradient.normalized();
     top.search(c, kSideRadiusMm, found);  // only on slopes: most voxels lie on flatter surface
-    side.clear();
-    nearest.clear();
+    sides.clear();
     for (auto f : found) {
       const auto n = top.voxel_at[f];
       const int q = top.part_of[n];
       const Eigen::Vector2d d = (centres[n] - c).head<2>().cast<double>();
-      side[q] += d.dot(downhill);
-      auto [at, fresh] = nearest.emplace(q, d.squaredNorm());
-      if (!fresh) at->second = std::min(at->second, d.squaredNorm());
+      auto at =
+          std::find_if(sides.begin(), sides.end(), [&](const Side& s) { return s.part == q; });
+      if (at == sides.end()) at = sides.insert(at, {q, 0.0, d.squaredNorm()});
+      at->offsets += d.dot(downhill);
+      at->nearest = std::min(at->nearest, d.squaredNorm());
     }
-    if (side[p] <= 0.0) continue;
+    const auto own =
+        std::find_if(sides.begin(), sides.end(), [&](const Side& s) { return s.part == p; });
+    if (own == sides.end() || own->offsets <= 0.0) continue;
     double best = std::numeric_limits<double>::infinity();
-    for (auto [q, offsets] : side) {
-      if (q != p && offsets < 0.0 && nearest[q] < best) uphill[v] = q, best = nearest[q];
+    for (const Side& s : sides) {
+      if (s.part != p && s.offsets < 0.0 && s.nearest < best) uphill[v] = s.part, best = s.nearest;
     }
   }
   return uphill;
