@@ -8,6 +8,9 @@
 // others: held-out runs), and, with --million N, N timings of one ≈ 1 M-point tray (20 sherds,
 // 0.265 mm grid). With --by-step, each tray line and summary also counts the merged and split
 // sherds by the step of the segmentation that left them so (segment()'s ClusteringStep names).
+// --overview DIR draws each tray (tray_S.png) and its truth (tray_S_truth.png) from above; with
+// --by-step also the parts after each step (tray_S_stepKK_NAME.png), to see where a sherd went
+// wrong.
 //
 // Matching: every found sherd stands for the truth sherd that holds most of its points, every
 // truth sherd is found as the part holding most of its points. Precision = points of found
@@ -20,6 +23,7 @@
 #include <fmt/format.h>
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <iostream>
@@ -137,15 +141,30 @@ FailuresBy failures_by_step(const sim::Tray& tray, const std::vector<seg::Cluste
   return by;
 }
 
-// The truth drawn like a segmentation, to view beside the one found (--overview).
-seg::Result truth_as_result(const sim::Tray& tray) {
-  seg::Result truth;
-  truth.sherds.resize(tray.sherds);
-  for (int k = 0; k < tray.sherds; ++k) truth.sherds[k].id = fmt::format("t{:02d}", k + 1);
-  for (std::uint32_t i = 0; i < tray.labels.size(); ++i) {
-    if (tray.labels[i] > 0) truth.sherds[tray.labels[i] - 1].indices.push_back(i);
+// Parts (point indices) drawn like a segmentation, named `prefix` 01, 02, …: the truth and, with
+// --by-step, the parts after each step, to view beside the sherds found (--overview). Parts of
+// fewer than `min_points` are drawn grey and unnamed, as the size filter would set them aside.
+seg::Result as_result(std::vector<std::vector<std::uint32_t>> parts, char prefix,
+                      std::size_t min_points) {
+  seg::Result drawn;
+  for (auto& part : parts) {
+    if (part.size() < min_points) {
+      drawn.rejected.push_back({std::move(part), "small"});
+      continue;
+    }
+    seg::Part& sherd = drawn.sherds.emplace_back();
+    sherd.id = fmt::format("{}{:02d}", prefix, drawn.sherds.size());
+    sherd.indices = std::move(part);
   }
-  return truth;
+  return drawn;
+}
+
+seg::Result truth_as_result(const sim::Tray& tray) {
+  std::vector<std::vector<std::uint32_t>> sherds(tray.sherds);
+  for (std::uint32_t i = 0; i < tray.labels.size(); ++i) {
+    if (tray.labels[i] > 0) sherds[tray.labels[i] - 1].push_back(i);
+  }
+  return as_result(std::move(sherds), 't', 0);
 }
 
 seg::Params params_for(const sim::Tray& tray, double contact_erosion_mm) {
@@ -213,8 +232,8 @@ Totals run_trays(std::uint64_t first, int trays, double grid, double erosion, bo
     const sim::Tray tray = sim::make_tray(spec);
     std::vector<seg::ClusteringStep> steps;
     const auto start = std::chrono::steady_clock::now();
-    const seg::Result result =
-        seg::segment(tray.cloud, params_for(tray, erosion), by_step ? &steps : nullptr);
+    const seg::Params params = params_for(tray, erosion);
+    const seg::Result result = seg::segment(tray.cloud, params, by_step ? &steps : nullptr);
     const double ms = time_ms(start);
     const Score s = score(tray, parts_of(result));
     if (!overview_dir.empty()) {
@@ -222,6 +241,14 @@ Totals run_trays(std::uint64_t first, int trays, double grid, double erosion, bo
       seg::write_overview_png(tray.cloud, result, dir / fmt::format("tray_{}.png", spec.seed));
       seg::write_overview_png(tray.cloud, truth_as_result(tray),
                               dir / fmt::format("tray_{}_truth.png", spec.seed));
+      // Each step's parts, numbered in order: where a sherd was first merged or split.
+      for (std::size_t k = 0; k < steps.size(); ++k) {
+        std::string name = steps[k].name;
+        std::replace(name.begin(), name.end(), ' ', '_');
+        seg::write_overview_png(
+            tray.cloud, as_result(steps[k].parts, 'p', static_cast<std::size_t>(params.min_points)),
+            dir / fmt::format("tray_{}_step{:02d}_{}.png", spec.seed, k + 1, name));
+      }
     }
     const bool count_exact = static_cast<int>(result.sherds.size()) == tray.sherds;
     t.add(s, count_exact, ms);
@@ -294,7 +321,9 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--grid", grid, "point spacing of the trays, mm")->capture_default_str();
   std::string overview_dir;
-  app.add_option("--overview", overview_dir, "write each tray's overview PNG into this directory");
+  app.add_option("--overview", overview_dir,
+                 "write each tray's overview PNG and its truth's into this directory (with "
+                 "--by-step also the parts after each step)");
   std::string real_dir;
   app.add_option("--real", real_dir,
                  "directory of PCL's test clouds (../shared/data/pcl-test-clouds): segment the two "
