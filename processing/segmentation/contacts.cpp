@@ -60,16 +60,40 @@ std::vector<std::pair<int, int>> levels_of_one_sherd(
   return levels;
 }
 
+// The voxels of `among` that the watershed handed to another basin (by `tag`) than their sherd's
+// (see kNoNeckMinBorderShare): nearer to another basin's core than to their own basin's, by more
+// than `slack` (mm, along the surface; to their own along paths within the basin). The cores are
+// the `seeds` of the basins marked in `judged`.
+std::vector<std::uint8_t> leaked_voxels(const Graph& near, const std::vector<Vec3f>& centres,
+                                        const std::vector<std::uint32_t>& among,
+                                        const std::vector<std::pair<std::uint32_t, int>>& seeds,
+                                        const std::vector<int>& tag,
+                                        const std::vector<std::uint8_t>& judged, double slack) {
+  std::vector<std::pair<std::uint32_t, int>> cores;  // by basin
+  for (auto [v, c] : seeds) {
+    if (judged[tag[v]]) cores.emplace_back(v, tag[v]);
+  }
+  std::vector<float> to_any(near.size()), to_own(near.size());
+  std::vector<int> nearest(near.size()), own(near.size());
+  std::vector<std::uint8_t> inside(near.size(), 0), leaked(near.size(), 0);
+  geodesic_from(near, centres, among, cores, to_any, nearest, inside);
+  geodesic_from(near, centres, among, cores, to_own, own, inside, &tag);
+  for (auto v : among) leaked[v] = nearest[v] != tag[v] && to_own[v] - to_any[v] > slack;
+  return leaked;
+}
+
 // Pairs (a, b) of parts (by `tag`, widths `width` in mm) with no neck between them, among the
-// voxels `among` of the parts marked in `judged`.
+// voxels `among` of the parts marked in `judged`; voxels marked in `leaked` (when given) are no
+// part of a border.
 std::vector<std::pair<int, int>> parts_without_neck(
     const Graph& near, const std::vector<std::uint32_t>& among, const std::vector<int>& tag,
     const std::vector<double>& width, const std::vector<std::uint8_t>& judged,
-    const std::vector<Vec3f>& core_rgb, double radius) {
+    const std::vector<std::uint8_t>* leaked, const std::vector<Vec3f>& core_rgb, double radius) {
   const int parts = static_cast<int>(core_rgb.size());
   std::vector<std::vector<std::size_t>> band(parts, std::vector<std::size_t>(parts, 0));
   std::vector<int> beside;
   for (auto v : among) {
+    if (leaked != nullptr && (*leaked)[v]) continue;
     beside.clear();
     for (auto n : near[v]) {
       if (tag[n] != tag[v] && judged[tag[n]]) add_once(beside, tag[n]);
@@ -322,8 +346,16 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
     }
     for (auto [a, b] : levels_of_one_sherd(near, centres, judged, tag, width, core_rgb, radius))
       group.join(a, b);
-    for (auto [a, b] : parts_without_neck(near, judged, tag, width, sherd_sized, core_rgb, radius))
-      group.join(a, b);
+    // Leaving out leaked voxels only shortens borders, so they are looked for (two searches over
+    // the cluster) only where a pair would join without them.
+    auto no_neck =
+        parts_without_neck(near, judged, tag, width, sherd_sized, nullptr, core_rgb, radius);
+    if (!no_neck.empty()) {
+      const auto leaked = leaked_voxels(near, centres, judged, seeds, tag, sherd_sized, erosion);
+      no_neck =
+          parts_without_neck(near, judged, tag, width, sherd_sized, &leaked, core_rgb, radius);
+    }
+    for (auto [a, b] : no_neck) group.join(a, b);
   }
   std::vector<std::vector<std::uint32_t>> parts;
   append_parts(cluster, tag, group, cores, parts);

@@ -90,7 +90,7 @@ void geodesic_from(const Graph& near, const std::vector<Vec3f>& centres,
                    const std::vector<std::uint32_t>& cluster,
                    const std::vector<std::pair<std::uint32_t, int>>& sources,
                    std::vector<float>& distance, std::vector<int>& tag,
-                   std::vector<std::uint8_t>& inside) {
+                   std::vector<std::uint8_t>& inside, const std::vector<int>* region) {
   using Item = std::pair<float, std::uint32_t>;
   std::priority_queue<Item, std::vector<Item>, std::greater<>> queue;
   for (auto v : cluster) distance[v] = std::numeric_limits<float>::infinity(), tag[v] = -1;
@@ -101,7 +101,7 @@ void geodesic_from(const Graph& near, const std::vector<Vec3f>& centres,
     queue.pop();
     if (d > distance[v]) continue;
     for (auto n : near[v]) {
-      if (!inside[n]) continue;
+      if (!inside[n] || (region != nullptr && (*region)[n] != (*region)[v])) continue;
       const float through = d + (centres[n] - centres[v]).norm();
       if (through < distance[n]) {
         distance[n] = through;

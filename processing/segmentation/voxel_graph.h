@@ -63,12 +63,13 @@ std::vector<std::vector<std::uint32_t>> components(const Graph& near,
 
 // Multi-source Dijkstra over the neighbour graph (edge length = distance between centroids),
 // within `cluster`: for every voxel of it, its distance from the nearest source and that source's
-// tag. `inside` is scratch space, all zero, sized for all voxels.
+// tag. With `region` given, paths stay among voxels of one region (region[v] alike). `inside` is
+// scratch space, all zero, sized for all voxels.
 void geodesic_from(const Graph& near, const std::vector<Vec3f>& centres,
                    const std::vector<std::uint32_t>& cluster,
                    const std::vector<std::pair<std::uint32_t, int>>& sources,
                    std::vector<float>& distance, std::vector<int>& tag,
-                   std::vector<std::uint8_t>& inside);
+                   std::vector<std::uint8_t>& inside, const std::vector<int>* region = nullptr);
 
 // The voxels of `region` on its boundary: those whose neighbours within the region lie to one
 // side (their mean more than a quarter of `radius` off), or that have hardly any. `inside` is
