@@ -251,8 +251,11 @@ std::vector<std::vector<std::uint32_t>> split_by_clay(
       continue;
     }
     geodesic_from(near, centres, part, seeds, distance, tag, mark);
-    std::vector<std::vector<std::uint32_t>> pieces(seeded);
-    for (auto v : part) pieces[tag[v]].push_back(v);
+    // A part can lie apart in 3-D (two levels joined across their unseen wall): what no seed
+    // reaches is a piece of its own.
+    std::vector<std::vector<std::uint32_t>> pieces(seeded + 1);
+    for (auto v : part) pieces[tag[v] >= 0 ? tag[v] : seeded].push_back(v);
+    if (pieces.back().empty()) pieces.pop_back();
     for (auto& piece : pieces) {
       result.push_back(std::move(piece));
       split_from.push_back(static_cast<int>(index));
