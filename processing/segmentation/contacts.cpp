@@ -215,8 +215,8 @@ std::vector<std::vector<std::uint32_t>> prominent_lobes(
   return voxels;
 }
 
-// For each basin (by `tag`, `basins` of them) marked in `asked`, the basin its voxels border most
-// across a step: top-view neighbours within `radius` that are not 3-D neighbours; −1 for none.
+// For each basin (by `tag`; asked.size() of them) marked in `asked`, the basin its voxels border
+// most across a step: top-view neighbours within `radius` that are not 3-D neighbours; −1 for none.
 std::vector<int> basins_across_steps(const std::vector<Vec3f>& centres,
                                      const std::vector<std::uint32_t>& cluster,
                                      const std::vector<int>& tag,
@@ -383,7 +383,7 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
   }
   std::vector<int> across_step(cores, -1);
   std::vector<Vec3f> basin_rgb(cores, Vec3f::Zero());
-  if (!voxel_rgb.empty() && std::count(to_join.begin(), to_join.end(), 1) > 0) {
+  if (!voxel_rgb.empty() && std::find(to_join.begin(), to_join.end(), 1) != to_join.end()) {
     across_step = basins_across_steps(centres, cluster, tag, to_join, radius);
     for (auto v : cluster) basin_rgb[tag[v]] += voxel_rgb[v];
   }
