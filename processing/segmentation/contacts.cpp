@@ -381,19 +381,23 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
                               (!own_neighbour || core_size[longest] >= sizes.min_wide_core_voxels);
     to_join[c] = border[c][longest] > 0 && !narrow_sherd;
   }
-  std::vector<int> across_step(cores, -1);
+  // The top view is searched only for the basins whose colour is off that basin's clay.
+  std::vector<std::uint8_t> off_clay(cores, 0);
   std::vector<Vec3f> basin_rgb(cores, Vec3f::Zero());
   if (!voxel_rgb.empty() && std::find(to_join.begin(), to_join.end(), 1) != to_join.end()) {
-    across_step = basins_across_steps(centres, cluster, tag, to_join, radius);
     for (auto v : cluster) basin_rgb[tag[v]] += voxel_rgb[v];
+    for (int c = 0; c < cores; ++c)
+      off_clay[c] = to_join[c] && off_either_line(basin_rgb[c], basin_rgb[longest_border(c)]) >=
+                                      kSmallCoreAcrossStep;
   }
+  std::vector<int> across_step(cores, -1);
+  if (std::find(off_clay.begin(), off_clay.end(), 1) != off_clay.end())
+    across_step = basins_across_steps(centres, cluster, tag, off_clay, radius);
   for (int c = 0; c < cores; ++c) {
     if (!to_join[c]) continue;
     const int longest = longest_border(c), across = across_step[c];
     const bool clay_across_step =
-        across >= 0 && across != longest &&
-        off_either_line(basin_rgb[c], basin_rgb[across]) < kSmallCoreAcrossStep &&
-        off_either_line(basin_rgb[c], basin_rgb[longest]) >= kSmallCoreAcrossStep;
+        across >= 0 && off_either_line(basin_rgb[c], basin_rgb[across]) < kSmallCoreAcrossStep;
     group.join(c, clay_across_step ? across : longest);
   }
   if (stages != nullptr) append_parts(cluster, tag, group, cores, stages->small_cores);
