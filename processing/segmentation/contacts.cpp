@@ -295,17 +295,22 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
     core_size.push_back(lobe.size());
   }
   const int deep_cores = static_cast<int>(core_size.size());
-  // Shallow cores (see kShallowCoreShare): regions that deep which hold no deep core or lobe.
-  for (auto v : cluster) core[v] = distance[v] >= kShallowCoreShare * erosion;
-  for (auto [v, c] : seeds) core[v] = 2;
-  for (const auto& c : components(near, cluster, core)) {
-    if (c.size() < sizes.min_own_core_voxels ||
-        std::any_of(c.begin(), c.end(), [&](std::uint32_t v) { return core[v] == 2; }))
-      continue;
-    for (auto v : c) seeds.emplace_back(v, static_cast<int>(core_size.size()));
-    core_size.push_back(c.size());
-  }
-  for (auto v : cluster) core[v] = 0;  // `core` is sized for all voxels; leave it clean
+  // Regions `depth` deep or more that hold no core yet and have min_own_core_voxels: cores.
+  auto add_cores_at = [&](double depth) {
+    for (auto v : cluster) core[v] = distance[v] >= depth;
+    for (auto [v, c] : seeds) core[v] = 2;
+    for (const auto& c : components(near, cluster, core)) {
+      if (c.size() < sizes.min_own_core_voxels ||
+          std::any_of(c.begin(), c.end(), [&](std::uint32_t v) { return core[v] == 2; }))
+        continue;
+      for (auto v : c) seeds.emplace_back(v, static_cast<int>(core_size.size()));
+      core_size.push_back(c.size());
+    }
+  };
+  add_cores_at(kShallowCoreShare * erosion);  // shallow cores (see kShallowCoreShare)
+  const int shallow_end = static_cast<int>(core_size.size());
+  add_cores_at(kBandCoreShare * erosion);  // band cores (see kBandCoreShare)
+  for (auto v : cluster) core[v] = 0;      // `core` is sized for all voxels; leave it clean
   const int cores = static_cast<int>(core_size.size());
   if (cores < 2) {
     if (stages != nullptr) {
@@ -331,6 +336,30 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
     return static_cast<int>(std::max_element(border[c].begin(), border[c].end()) -
                             border[c].begin());
   };
+  // Each basin marked in `joining` joins the basin it borders most (by `border`) or, when its
+  // colour shows that it is not the clay of that basin but is the clay of the basin it borders
+  // most across a step (kSmallCoreAcrossStep), that one. The top view is searched only for the
+  // basins whose colour is off the clay of the basin they border most.
+  auto join_touched_or_across = [&](const std::vector<std::uint8_t>& joining) {
+    std::vector<std::uint8_t> off_clay(cores, 0);
+    std::vector<Vec3f> basin_rgb(cores, Vec3f::Zero());
+    if (!voxel_rgb.empty() && std::find(joining.begin(), joining.end(), 1) != joining.end()) {
+      for (auto v : cluster) basin_rgb[tag[v]] += voxel_rgb[v];
+      for (int c = 0; c < cores; ++c)
+        off_clay[c] = joining[c] && off_either_line(basin_rgb[c], basin_rgb[longest_border(c)]) >=
+                                        kSmallCoreAcrossStep;
+    }
+    std::vector<int> across_step(cores, -1);
+    if (std::find(off_clay.begin(), off_clay.end(), 1) != off_clay.end())
+      across_step = basins_across_steps(centres, cluster, tag, off_clay, radius);
+    for (int c = 0; c < cores; ++c) {
+      if (!joining[c]) continue;
+      const int longest = longest_border(c), across = across_step[c];
+      const bool clay_across_step =
+          across >= 0 && off_either_line(basin_rgb[c], basin_rgb[across]) < kSmallCoreAcrossStep;
+      group.join(c, clay_across_step ? across : longest);
+    }
+  };
   // A lobe of its neighbour's clay is that sherd's own (see kLobeMinTopShare).
   if (deep_cores > lobes_begin) {
     measure_basins();
@@ -347,13 +376,22 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
     }
     for (auto v : cluster) tag[v] = group.root(tag[v]);
   }
-  // Shallow cores' basins first, until none joins: one joins the basin it borders most unless
+  // Band cores' basins join next (see kBandCoreShare), so that the shallow cores are judged by
+  // the basins they then have.
+  if (cores > shallow_end) {
+    measure_basins();
+    std::vector<std::uint8_t> joining(cores, 0);
+    for (int c = shallow_end; c < cores; ++c) joining[c] = border[c][longest_border(c)] > 0;
+    join_touched_or_across(joining);
+    for (auto v : cluster) tag[v] = group.root(tag[v]);
+  }
+  // Shallow cores' basins then, until none joins: one joins the basin it borders most unless
   // it is a sherd's (min_own_basin_voxels) beside a wide core. Its voxels go over, so that the
   // small deep cores below are judged by the basins they then have.
   for (bool joined = true; joined;) {
     measure_basins();
     joined = false;
-    for (int c = deep_cores; c < cores; ++c) {
+    for (int c = deep_cores; c < shallow_end; ++c) {
       const int longest = longest_border(c);
       if (border[c][longest] == 0 || (basin_size[c] >= sizes.min_own_basin_voxels &&
                                       core_size[longest] >= sizes.min_wide_core_voxels))
@@ -365,13 +403,12 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
       for (auto v : cluster) tag[v] = group.root(tag[v]);
   }
   // A small core's basin joins the neighbouring basin it has most neighbour pairs with — for the
-  // far side of a step, mostly the only one: the rest of its sherd. A large basin around a small
-  // core is a sherd too narrow for the erosion to leave much of it, touching a wider one.
-  // When its colour shows that it is not the clay of that basin but is the clay of the basin it
-  // borders most across a step (kSmallCoreAcrossStep), it joins that one.
+  // far side of a step, mostly the only one: the rest of its sherd — or the one across the step
+  // that its colour shows (join_touched_or_across). A large basin around a small core is a sherd
+  // too narrow for the erosion to leave much of it, touching a wider one.
   std::vector<std::uint8_t> sherd_sized(cores), to_join(cores, 0);
   for (int c = 0; c < cores; ++c) {
-    // A shallow core that still has a part stays apart (judged above).
+    // A shallow core that still has a part stays apart (judged above); a band core's has none.
     sherd_sized[c] = c < deep_cores ? core_size[c] >= sizes.min_own_core_voxels : basin_size[c] > 0;
     if (sherd_sized[c] || c >= deep_cores) continue;
     const int longest = longest_border(c);
@@ -381,25 +418,7 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
                               (!own_neighbour || core_size[longest] >= sizes.min_wide_core_voxels);
     to_join[c] = border[c][longest] > 0 && !narrow_sherd;
   }
-  // The top view is searched only for the basins whose colour is off that basin's clay.
-  std::vector<std::uint8_t> off_clay(cores, 0);
-  std::vector<Vec3f> basin_rgb(cores, Vec3f::Zero());
-  if (!voxel_rgb.empty() && std::find(to_join.begin(), to_join.end(), 1) != to_join.end()) {
-    for (auto v : cluster) basin_rgb[tag[v]] += voxel_rgb[v];
-    for (int c = 0; c < cores; ++c)
-      off_clay[c] = to_join[c] && off_either_line(basin_rgb[c], basin_rgb[longest_border(c)]) >=
-                                      kSmallCoreAcrossStep;
-  }
-  std::vector<int> across_step(cores, -1);
-  if (std::find(off_clay.begin(), off_clay.end(), 1) != off_clay.end())
-    across_step = basins_across_steps(centres, cluster, tag, off_clay, radius);
-  for (int c = 0; c < cores; ++c) {
-    if (!to_join[c]) continue;
-    const int longest = longest_border(c), across = across_step[c];
-    const bool clay_across_step =
-        across >= 0 && off_either_line(basin_rgb[c], basin_rgb[across]) < kSmallCoreAcrossStep;
-    group.join(c, clay_across_step ? across : longest);
-  }
+  join_touched_or_across(to_join);
   if (stages != nullptr) append_parts(cluster, tag, group, cores, stages->small_cores);
   // Levels are looked for among the parts of sherd-sized cores only (the others joined above).
   if (!voxel_rgb.empty() && std::count(sherd_sized.begin(), sherd_sized.end(), 1) >= 2) {
