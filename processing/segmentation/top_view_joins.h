@@ -11,8 +11,9 @@
 namespace sherd::segmentation::detail {
 
 // `parts` (voxel lists) with those narrower in the top view than a sherd can be (strips of a
-// sherd: a fracture face, a band seen edge-on) joined to the part of their clay beside them. The
-// rule and its measurements: at kSherdMinTopViewWidthMm in top_view_joins.cpp.
+// sherd: a fracture face, a band seen edge-on) joined to the part of their clay beside them, or,
+// where none is, to the strips of their clay beside them (a sherd standing steeply). The rules and
+// their measurements: at kSherdMinTopViewWidthMm and join_strips_of_one_clay in top_view_joins.cpp.
 std::vector<std::vector<std::uint32_t>> join_narrow_parts(
     std::vector<std::vector<std::uint32_t>> parts, const Graph& near,
     const std::vector<Vec3f>& centres, const std::vector<Vec3f>& voxel_rgb, double radius,
