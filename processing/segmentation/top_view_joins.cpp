@@ -345,13 +345,12 @@ std::vector<std::vector<std::uint32_t>> join_narrow_parts(
   }
   if (std::find(narrow.begin(), narrow.end(), 1) == narrow.end()) return parts;
   TopView top(parts, centres, wide);  // among the wide parts' voxels
-  if (top.empty()) return parts;
   const std::vector<Vec3f> colour = colour_sums(parts, voxel_rgb);
   std::vector<int> found;
   std::vector<int> joins(n_parts, -1);
   std::vector<int> beside;  // the wide parts a narrow one borders
   for (int p = 0; p < n_parts; ++p) {
-    if (!narrow[p]) continue;
+    if (!narrow[p] || top.empty()) continue;
     beside.clear();
     for (auto v : parts[p]) {
       for (auto n : near[v]) {
@@ -365,8 +364,8 @@ std::vector<std::vector<std::uint32_t>> join_narrow_parts(
       const float off = off_either_line(colour[p], colour[q]);
       if (off < best) best = off, joins[p] = q;
     }
-    strip[p] = joins[p] < 0;
   }
+  for (int p = 0; p < n_parts; ++p) strip[p] = narrow[p] && joins[p] < 0;
   join_strips_of_one_clay(parts, centres, colour, strip, radius, joins);
   return with_joined(std::move(parts), joins);
 }

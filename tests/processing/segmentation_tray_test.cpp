@@ -662,6 +662,30 @@ TEST(UnseenWall, AStripOfAnotherClayStaysApart) {
   expect_two_sherds(sherd_and_strip(sherd::Rgb8{150, 140, 60}), 1.0);
 }
 
+// A sherd standing steeply, alone on the plate, as the top view shows it: two strips 5 mm wide
+// and 40 mm long, side by side along 10 mm of them — its top edge at 30 mm in the clay (180, 120,
+// 80), x from 0 to 5 mm and y from −35 to 5 mm, and a band of its side 22 mm lower in
+// `lower_colour`, x from 5.5 to 10.5 mm and y from −5 to 35 mm: clusters of their own, each
+// narrower than any sherd lying down, no wider part beside them, and too far from covering their
+// hull in the top view for a fold (about 0.7). Truth: 1 the upper strip, `lower_label` the lower.
+PlateScene strips_of_a_steep_sherd(sherd::Rgb8 lower_colour, int lower_label) {
+  return plate_scene([&](float x, float y) {
+    if (x >= 0 && x <= 5 && y >= -35 && y <= 5) return Cell{1, 30.0f, {180, 120, 80}};
+    if (x >= 5.5f && x <= 10.5f && y >= -5 && y <= 35) return Cell{lower_label, 8.0f, lower_colour};
+    return Cell{};
+  });
+}
+
+// The lower strip in the same clay, in shade (0.8 ×): one sherd of all their points.
+TEST(SteepSherd, StripsOfOneClayAloneOnThePlateAreOneSherd) {
+  expect_one_sherd(strips_of_a_steep_sherd(sherd::Rgb8{144, 96, 64}, 1));
+}
+
+// The lower strip in another clay (see AStripOfAnotherClayStaysApart): two sherds.
+TEST(SteepSherd, StripsOfTwoClaysStayApart) {
+  expect_two_sherds(strips_of_a_steep_sherd(sherd::Rgb8{150, 140, 60}, 2), 1.0);
+}
+
 // A 40 × 50 mm sherd at 10 mm and, beside its 50 mm edge, a 14 mm wide band 5 mm lower, as a lip
 // or a foot ring shows (x from 0.5 to 14.5 mm): the wall between them is never sampled and the
 // step is higher than the clustering distance, so the band is a cluster of its own, wide enough
