@@ -491,6 +491,11 @@ std::string case_name(const ::testing::TestParamInfo<TrayOfRun>& info) {
 // across a step of q90 9–15 mm, were joined as one sherd folded over itself: a band that wide now
 // joins only behind a level's wall (sherds 14 and 16 of seed 163001's tray 163011, 7 and 13 of
 // seed 185001's tray 185022, 2 and 7 of seed 225001's tray 225031: each pair found as one before).
+// A sherd's own fracture face between its surface and a sherd whose clay's line to grey runs close
+// to its own touches that sherd more in 3-D than its own surface where the crease above it is not
+// seen: it stays with the sherd uphill of it, its face falling away from its surface (seed 135001's
+// tray 135057, 145001's 145025, 211001's 211071, 229001's 229024 and 229045: a piece of a sherd in
+// its neighbour before, the sherd's recall 0.52–0.84).
 class FormerlyFailingTray : public ::testing::TestWithParam<TrayOfRun> {};
 
 TEST_P(FormerlyFailingTray, EachSherdIsFoundOnceAndWhole) {
@@ -575,7 +580,12 @@ INSTANTIATE_TEST_SUITE_P(
                       TrayOfRun{"OneAsTwo_StripsOfASteepSherd", 273001, 273081},
                       TrayOfRun{"TwoAsOne_WideBandBehindAHighStep", 163001, 163011},
                       TrayOfRun{"TwoAsOne_WideBandBehindAHighStep", 185001, 185022},
-                      TrayOfRun{"TwoAsOne_WideBandBehindAHighStep", 225001, 225031}),
+                      TrayOfRun{"TwoAsOne_WideBandBehindAHighStep", 225001, 225031},
+                      TrayOfRun{"OneAsTwo_OwnFaceTouchingACloseClay", 135001, 135057},
+                      TrayOfRun{"OneAsTwo_OwnFaceTouchingACloseClay", 145001, 145025},
+                      TrayOfRun{"OneAsTwo_OwnFaceTouchingACloseClay", 211001, 211071},
+                      TrayOfRun{"OneAsTwo_OwnFaceTouchingACloseClay", 229001, 229024},
+                      TrayOfRun{"OneAsTwo_OwnFaceTouchingACloseClay", 229001, 229045}),
     case_name);
 
 // A black plate seen from above every 0.5 mm, x from −50 to 30 mm, y from −40 to 40 mm, with
