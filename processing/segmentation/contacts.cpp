@@ -497,7 +497,7 @@ std::vector<std::vector<std::uint32_t>> join_across_unseen_walls(
     for (const auto& [q, n] : bordering) {
       const float off = off_either_line(colour[p], colour[q]);
       if ((n < kWallMinBorderShare * parts[p].size() && !level_wall(steps[q])) ||
-          contacts[q] > kLevelMaxContactShare * steps[q].size() || off >= best)
+          contacts[q] > kWallMaxContactShare * steps[q].size() || off >= best)
         continue;
       best = off;
       joins[p] = q;
