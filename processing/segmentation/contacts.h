@@ -191,15 +191,16 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
 // core) that, together: borders it in the top view along at least kWallMinBorderShare of its
 // voxels (top-view neighbours, apart in 3-D), or less behind a level's wall (level_wall: an even
 // step, 2.5–8 mm high); hardly touches it in 3-D beside that
-// (kWallMaxContactShare); and has its clay's colour, or that colour mixed with grey — the
-// fired core a fracture face shows is greyer than the surfaces — within kWallMaxOffClayLine of
-// that line in hue. Of several, the one nearest in colour: a leaning sherd's strip borders
-// the sherd it rests on as well. Smaller pieces than kWallPartMinMm2 are crumbs on the plate.
-// Measured on bench_segmentation (100 trays each of seeds 1, 2, 1001): the five strips (trays
-// 94 of seeds 1 and 2; 1014, 1062, 1068, 1099) cover 80–245 mm², lie 3–5 mm from their boundary
-// at the deepest, border their sherd along 28–86 % of their voxels and lie 0.002–0.012 off its
-// clay line; the other sherds bordering them 0.018–0.065 off. Seed 1001's exact count 91 → 94 %.
-// Over eighteen seeds (1 / 1001 / 5001 / … / 35001), four narrow levels in clusters of their own
+// (kWallMaxContactShare, the levels' bound before it grew: at 0.06 this join merged another sherd,
+// see kLevelMaxContactShare); and has its clay's colour, or that colour mixed with
+// grey — the fired core a fracture face shows is greyer than the surfaces — within
+// kWallMaxOffClayLine of that line in hue. Of several, the one nearest in colour: a leaning sherd's
+// strip borders the sherd it rests on as well. Smaller pieces than kWallPartMinMm2 are crumbs on
+// the plate. Measured on bench_segmentation (100 trays each of seeds 1, 2, 1001): the five strips
+// (trays 94 of seeds 1 and 2; 1014, 1062, 1068, 1099) cover 80–245 mm², lie 3–5 mm from their
+// boundary at the deepest, border their sherd along 28–86 % of their voxels and lie 0.002–0.012 off
+// its clay line; the other sherds bordering them 0.018–0.065 off. Seed 1001's exact count 91 → 94
+// %. Over eighteen seeds (1 / 1001 / 5001 / … / 35001), four narrow levels in clusters of their own
 // (trays 13026, 23092, 29059, 33056) bordered their sherd along 22–24 % of their voxels, 0.0001–
 // 0.0011 off its clay line, behind steps of q90 / q10 1.1–1.2; a narrow sherd beside another
 // (9025, merged when the share alone was lowered to 0.2) 23 %, 0.0026 off, behind a step of
