@@ -81,14 +81,14 @@ bool level_wall(std::vector<float>& heights);
 // 0.68 × (19012, split at 0.7) and 0.0081 apart (19082, joined until then as a face); pairs
 // joined by the face rule went down to 0.61 × for different sherds (61, 1022): 0.65 and
 // 0.0085 join both and change nothing else.
-// The border leaves out the voxels the watershed handed to the wrong basin (leaked_voxels):
-// those nearer another basin's core than their own basin's (along paths within it) by more than
-// the erosion. A strip of one sherd along the other's edge, flooded from the other's core, makes
-// the contact look long: trays 137096 and 199091, two sherds each, hues 0.0055 and 0.0073 apart,
-// borders 13.9 and 12.1 mm beside narrower parts 19.3 and 15.1 mm wide, 12.1 and 7.6 mm without
-// the strip. Over 80 runs of 100 trays (1 / 1001 / … / 15001, 133001 / 135001 / … / 275001),
-// beside the binary without it: those 2 trays made right, no other tray's figures moved; on
-// eight runs never run before (337001 / 339001 / … / 351001) no tray's figures moved.
+// The border leaves out the voxels the watershed handed to the wrong basin (see leaked_to in
+// contacts.cpp): those nearer another basin's core than their own basin's (along paths within it)
+// by more than the erosion. A strip of one sherd along the other's edge, flooded from the other's
+// core, makes the contact look long: trays 137096 and 199091, two sherds each, hues 0.0055 and
+// 0.0073 apart, borders 13.9 and 12.1 mm beside narrower parts 19.3 and 15.1 mm wide, 12.1 and 7.6
+// mm without the strip. Over 80 runs of 100 trays (1 / 1001 / … / 15001, 133001 / 135001 / … /
+// 275001), beside the binary without it: those 2 trays made right, no other tray's figures moved;
+// on eight runs never run before (337001 / 339001 / … / 351001) no tray's figures moved.
 inline constexpr double kNoNeckMinBorderShare = 0.65;
 inline constexpr double kNoNeckMaxHueDifference = 0.0085;
 
@@ -102,7 +102,8 @@ inline constexpr double kNoNeckMaxHueDifference = 0.0085;
 // `min_own_core_voxels` is taken for the far side of a step inside a sherd (see
 // Params::contact_min_core_mm2) and its part joins a neighbour — unless that part covers
 // `min_own_basin_voxels` (Params::contact_own_basin_mm2) and borders no other small core's part
-// of its own (see kWideCoreMm2): then it is a narrow sherd touching a wider one. Where no core
+// of its own (see kWideCoreMm2): then it is a narrow sherd touching a wider one (what the
+// watershed handed the wider one first counting, see kSmallCoreMaxReclaimShare). Where no core
 // lies, a shallower one may stand for a sherd (see kShallowCoreShare), and a shallower still for
 // a band of one, whose part joins a neighbour (see kBandCoreShare); with fewer than two cores the
 // cluster stays whole. Two sherd-sized cores' parts that are one sherd's levels
