@@ -269,6 +269,28 @@ std::vector<int> basins_across_steps(const std::vector<Vec3f>& centres,
   return across;
 }
 
+// For each voxel of the basins (by `tag`) marked in `asked`, whether a voxel of another basin lies
+// beside it across a step: a top-view neighbour within `radius` that is not a 3-D neighbour.
+std::vector<std::uint8_t> voxels_beside_steps(const std::vector<Vec3f>& centres,
+                                              const std::vector<std::uint32_t>& cluster,
+                                              const std::vector<int>& tag,
+                                              const std::vector<std::uint8_t>& asked,
+                                              double radius) {
+  std::vector<std::uint8_t> beside(centres.size(), 0);
+  TopView top(centres, cluster);
+  std::vector<int> found;
+  const float radius2 = static_cast<float>(radius * radius);
+  for (auto v : cluster) {
+    if (!asked[tag[v]]) continue;
+    top.search(centres[v], radius, found);
+    beside[v] = std::any_of(found.begin(), found.end(), [&](int f) {
+      const auto n = top.voxel_at[f];
+      return tag[n] != tag[v] && (centres[n] - centres[v]).squaredNorm() > radius2;
+    });
+  }
+  return beside;
+}
+
 // The voxels of `cluster` as parts by the group of their basin (`tag`), appended to `parts`.
 void append_parts(const std::vector<std::uint32_t>& cluster, const std::vector<int>& tag,
                   Groups& group, int groups, std::vector<std::vector<std::uint32_t>>& parts) {
@@ -474,6 +496,45 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
     if (sherd_sized[c] || c >= deep_cores) continue;
     const bool narrow_sherd = basin_size[c] >= sizes.min_own_basin_voxels && beside_wide_or_none(c);
     to_join[c] = border[c][longest_border(c)] > 0 && !narrow_sherd;
+  }
+  // A small sherd's basin beside a wide core, neither behind a step nor without a neck, stays
+  // apart (see kSmallSherdMaxStepBandMm2).
+  std::vector<std::uint8_t> small_sherd(cores, 0);
+  bool any_small_sherd = false;
+  for (int c = 0; c < deep_cores; ++c) {
+    small_sherd[c] = to_join[c] && 2 * basin_size[c] >= sizes.min_own_basin_voxels &&
+                     core_size[longest_border(c)] >= sizes.min_wide_core_voxels;
+    any_small_sherd |= small_sherd[c] != 0;
+  }
+  if (any_small_sherd) {
+    const auto beside_step = voxels_beside_steps(centres, cluster, tag, small_sherd, radius);
+    std::vector<std::size_t> band_c(cores, 0), band_longest(cores, 0), step_band(cores, 0);
+    std::vector<double> width(cores, 0.0);
+    std::vector<int> longest(cores, -1);
+    for (int c = 0; c < cores; ++c) {
+      if (small_sherd[c]) longest[c] = longest_border(c);
+    }
+    for (auto v : cluster) {
+      const int b = tag[v];
+      for (int c = 0; c < cores; ++c) {
+        if (!small_sherd[c] || (b != c && b != longest[c])) continue;
+        const int other = b == c ? longest[c] : c;
+        const bool at_border = std::any_of(near[v].begin(), near[v].end(),
+                                           [&](std::uint32_t n) { return tag[n] == other; });
+        (b == c ? band_c : band_longest)[c] += at_border;
+        if (b == c) {
+          step_band[c] += beside_step[v];
+          width[c] = std::max(width[c], 2.0 * distance[v]);
+        }
+      }
+    }
+    for (int c = 0; c < cores; ++c) {
+      if (!small_sherd[c]) continue;
+      const double border_mm = border_length_mm(band_c[c], band_longest[c], radius);
+      if (step_band[c] < sizes.max_small_sherd_step_band_voxels &&
+          border_mm < kNoNeckMinBorderShare * width[c])
+        to_join[c] = 0;
+    }
   }
   join_touched_or_across(to_join);
   if (stages != nullptr) append_parts(cluster, tag, group, cores, stages->small_cores);

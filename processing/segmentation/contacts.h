@@ -103,7 +103,8 @@ inline constexpr double kNoNeckMaxHueDifference = 0.0085;
 // Params::contact_min_core_mm2) and its part joins a neighbour — unless that part covers
 // `min_own_basin_voxels` (Params::contact_own_basin_mm2) and borders no other small core's part
 // of its own (see kWideCoreMm2): then it is a narrow sherd touching a wider one (what the
-// watershed handed the wider one first counting, see kSmallCoreMaxReclaimShare). Where no core
+// watershed handed the wider one first counting, see kSmallCoreMaxReclaimShare), or it is half as
+// large and neither behind a step nor without a neck (kSmallSherdMaxStepBandMm2). Where no core
 // lies, a shallower one may stand for a sherd (see kShallowCoreShare), and a shallower still for
 // a band of one, whose part joins a neighbour (see kBandCoreShare); with fewer than two cores the
 // cluster stays whole. Two sherd-sized cores' parts that are one sherd's levels
@@ -114,7 +115,23 @@ struct CoreSizes {
   std::size_t min_own_core_voxels;   // smaller cores' parts join a neighbour …
   std::size_t min_own_basin_voxels;  // … unless the part is at least this large …
   std::size_t min_wide_core_voxels;  // … beside a part of its own with a core this large
+  std::size_t max_small_sherd_step_band_voxels;  // see kSmallSherdMaxStepBandMm2 below
 };
+
+// A small core's basin smaller than min_own_basin_voxels is mostly the far side of a step inside
+// a sherd: it lies along the rest of its sherd across the step (top-view neighbours apart in 3-D),
+// or borders it in 3-D without a neck. A whole small sherd touching a wider one does neither. So
+// a small core's basin of half min_own_basin_voxels or more, beside a wide core
+// (min_wide_core_voxels), stays apart when less than kSmallSherdMaxStepBandMm2 of it lies beside
+// another basin across a step and its 3-D border with the basin it borders most (as
+// parts_without_neck measures it) is shorter than kNoNeckMinBorderShare × its width. Measured with
+// a debug build (every small core's basin joined over 80 runs of 100 trays, 1 / 1001 / 5001 / … /
+// 15001, 133001 / 135001 / … / 275001, 1,157 joins, with its truth): the basins of 324 voxels or
+// more beside a wide core with fewer than 30 voxels (21 mm²) across a step and such a neck were
+// all whole small sherds joined wrongly (8: 473–616 voxels; trays 141042, 177068, 179008, 181097,
+// 239054, 243089, 259071, 9097); the far sides of steps that joined rightly had 80 or more such
+// voxels, or borders of 0.87 × their width or longer (one with 49 voxels: 263012).
+inline constexpr double kSmallSherdMaxStepBandMm2 = 20.0;
 
 // A small core's large part beside another part of its own with a small core is one narrow
 // sherd that the erosion cut into two small cores (where it narrows, or across a bend), not a

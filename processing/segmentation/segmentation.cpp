@@ -76,6 +76,8 @@ std::vector<std::vector<std::uint32_t>> clusters(const std::vector<Vec3f>& point
   sizes.min_own_basin_voxels =
       static_cast<std::size_t>(params.contact_own_basin_mm2 / (leaf * leaf));
   sizes.min_wide_core_voxels = static_cast<std::size_t>(kWideCoreMm2 / (leaf * leaf));
+  sizes.max_small_sherd_step_band_voxels =
+      static_cast<std::size_t>(kSmallSherdMaxStepBandMm2 / (leaf * leaf));
   std::vector<float> distance(voxels.centres.size());
   std::vector<int> tag(voxels.centres.size());
   std::vector<Vec3f> voxel_rgb;  // colour sums per voxel, when the scan has colours

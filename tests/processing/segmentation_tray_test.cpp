@@ -503,6 +503,9 @@ std::string case_name(const ::testing::TestParamInfo<TrayOfRun>& info) {
 // inside it the watershed reached from the wider sherd's core: its basin, 645 voxels, fell short
 // of a sherd's area (648) and it joined the other; with the 61 voxels nearer its own core given
 // back it stays apart (sherds 2 and 1 of seed 161001's tray 161019: found as one before).
+// A whole small sherd, 462 voxels (320 mm²) and its core too small to be a sherd's, touching a
+// wider one through a neck and lying beside no other part across a step (sherds 2 and 1 of seed
+// 243001's tray 243089: found as one before).
 class FormerlyFailingTray : public ::testing::TestWithParam<TrayOfRun> {};
 
 TEST_P(FormerlyFailingTray, EachSherdIsFoundOnceAndWhole) {
@@ -594,7 +597,8 @@ INSTANTIATE_TEST_SUITE_P(
                       TrayOfRun{"OneAsTwo_OwnFaceTouchingACloseClay", 229001, 229024},
                       TrayOfRun{"OneAsTwo_OwnFaceTouchingACloseClay", 229001, 229045},
                       TrayOfRun{"OneAsTwo_LevelsTouchingALittle", 161001, 161055},
-                      TrayOfRun{"TwoAsOne_NarrowSherdTrimmedByTheWatershed", 161001, 161019}),
+                      TrayOfRun{"TwoAsOne_NarrowSherdTrimmedByTheWatershed", 161001, 161019},
+                      TrayOfRun{"TwoAsOne_SmallSherdBesideAWideOne", 243001, 243089}),
     case_name);
 
 // A black plate seen from above every 0.5 mm, x from −50 to 30 mm, y from −40 to 40 mm, with
