@@ -85,6 +85,26 @@ std::vector<int> leaked_to(const Graph& near, const std::vector<Vec3f>& centres,
   return leaked;
 }
 
+// The bands of the borders between the parts (by `tag`; `parts` of them) in 3-D: band[a][b] is
+// how many voxels of `among` in part a have a neighbour in part b. Voxels `leaked` to another
+// basin (leaked_to, when given) are no part of a band.
+std::vector<std::vector<std::size_t>> border_bands(const Graph& near,
+                                                   const std::vector<std::uint32_t>& among,
+                                                   const std::vector<int>& tag, int parts,
+                                                   const std::vector<int>* leaked) {
+  std::vector<std::vector<std::size_t>> band(parts, std::vector<std::size_t>(parts, 0));
+  std::vector<int> beside;
+  for (auto v : among) {
+    if (leaked != nullptr && (*leaked)[v] >= 0) continue;
+    beside.clear();
+    for (auto n : near[v]) {
+      if (tag[n] != tag[v]) add_once(beside, tag[n]);
+    }
+    for (int b : beside) ++band[tag[v]][b];
+  }
+  return band;
+}
+
 // Pairs (a, b) of parts (by `tag`, widths `width` in mm) with no neck between them, among the
 // voxels `among` of the parts marked in `judged`; voxels `leaked` to another basin (leaked_to, when
 // given) are no part of a border.
@@ -93,16 +113,7 @@ std::vector<std::pair<int, int>> parts_without_neck(
     const std::vector<double>& width, const std::vector<std::uint8_t>& judged,
     const std::vector<int>* leaked, const std::vector<Vec3f>& core_rgb, double radius) {
   const int parts = static_cast<int>(core_rgb.size());
-  std::vector<std::vector<std::size_t>> band(parts, std::vector<std::size_t>(parts, 0));
-  std::vector<int> beside;
-  for (auto v : among) {
-    if (leaked != nullptr && (*leaked)[v] >= 0) continue;
-    beside.clear();
-    for (auto n : near[v]) {
-      if (tag[n] != tag[v] && judged[tag[n]]) add_once(beside, tag[n]);
-    }
-    for (int b : beside) ++band[tag[v]][b];
-  }
+  const auto band = border_bands(near, among, tag, parts, leaked);
   std::vector<std::pair<int, int>> pairs;
   for (int a = 0; a < parts; ++a) {
     for (int b = a + 1; b < parts; ++b) {
@@ -238,14 +249,17 @@ std::vector<std::vector<std::uint32_t>> prominent_lobes(
   return voxels;
 }
 
-// For each basin (by `tag`; asked.size() of them) marked in `asked`, the basin its voxels border
-// most across a step: top-view neighbours within `radius` that are not 3-D neighbours; −1 for none.
-std::vector<int> basins_across_steps(const std::vector<Vec3f>& centres,
-                                     const std::vector<std::uint32_t>& cluster,
-                                     const std::vector<int>& tag,
-                                     const std::vector<std::uint8_t>& asked, double radius) {
+// The step pairs of the basins (by `tag`; asked.size() of them) marked in `asked`: top-view
+// neighbours within `radius` that are not 3-D neighbours.
+struct StepPairs {
+  std::vector<int> most_across;  // by basin: the basin it has most pairs with; −1 for none
+  std::vector<std::uint8_t> beside_step;  // by voxel: whether it is in one
+};
+StepPairs step_pairs(const std::vector<Vec3f>& centres, const std::vector<std::uint32_t>& cluster,
+                     const std::vector<int>& tag, const std::vector<std::uint8_t>& asked,
+                     double radius) {
   const int basins = static_cast<int>(asked.size());
-  std::vector<int> across(basins, -1);
+  StepPairs steps{std::vector<int>(basins, -1), std::vector<std::uint8_t>(centres.size(), 0)};
   TopView top(centres, cluster);
   std::vector<std::vector<std::size_t>> pairs(basins);
   std::vector<int> found;
@@ -257,38 +271,18 @@ std::vector<int> basins_across_steps(const std::vector<Vec3f>& centres,
     top.search(centres[v], radius, found);
     for (auto f : found) {
       const auto n = top.voxel_at[f];
-      if (tag[n] != tag[v] && (centres[n] - centres[v]).squaredNorm() > radius2) ++counts[tag[n]];
+      if (tag[n] == tag[v] || (centres[n] - centres[v]).squaredNorm() <= radius2) continue;
+      ++counts[tag[n]];
+      steps.beside_step[v] = 1;
     }
   }
   for (int c = 0; c < basins; ++c) {
     const auto& counts = pairs[c];
     if (counts.empty()) continue;
     const auto most = std::max_element(counts.begin(), counts.end());
-    if (*most > 0) across[c] = static_cast<int>(most - counts.begin());
+    if (*most > 0) steps.most_across[c] = static_cast<int>(most - counts.begin());
   }
-  return across;
-}
-
-// For each voxel of the basins (by `tag`) marked in `asked`, whether a voxel of another basin lies
-// beside it across a step: a top-view neighbour within `radius` that is not a 3-D neighbour.
-std::vector<std::uint8_t> voxels_beside_steps(const std::vector<Vec3f>& centres,
-                                              const std::vector<std::uint32_t>& cluster,
-                                              const std::vector<int>& tag,
-                                              const std::vector<std::uint8_t>& asked,
-                                              double radius) {
-  std::vector<std::uint8_t> beside(centres.size(), 0);
-  TopView top(centres, cluster);
-  std::vector<int> found;
-  const float radius2 = static_cast<float>(radius * radius);
-  for (auto v : cluster) {
-    if (!asked[tag[v]]) continue;
-    top.search(centres[v], radius, found);
-    beside[v] = std::any_of(found.begin(), found.end(), [&](int f) {
-      const auto n = top.voxel_at[f];
-      return tag[n] != tag[v] && (centres[n] - centres[v]).squaredNorm() > radius2;
-    });
-  }
-  return beside;
+  return steps;
 }
 
 // The voxels of `cluster` as parts by the group of their basin (`tag`), appended to `parts`.
@@ -396,7 +390,7 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
     }
     std::vector<int> across_step(cores, -1);
     if (std::find(off_clay.begin(), off_clay.end(), 1) != off_clay.end())
-      across_step = basins_across_steps(centres, cluster, tag, off_clay, radius);
+      across_step = step_pairs(centres, cluster, tag, off_clay, radius).most_across;
     for (int c = 0; c < cores; ++c) {
       if (!joining[c]) continue;
       const int longest = longest_border(c), across = across_step[c];
@@ -507,30 +501,19 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
     any_small_sherd |= small_sherd[c] != 0;
   }
   if (any_small_sherd) {
-    const auto beside_step = voxels_beside_steps(centres, cluster, tag, small_sherd, radius);
-    std::vector<std::size_t> band_c(cores, 0), band_longest(cores, 0), step_band(cores, 0);
+    const auto beside_step = step_pairs(centres, cluster, tag, small_sherd, radius).beside_step;
+    const auto band = border_bands(near, cluster, tag, cores, nullptr);
+    std::vector<std::size_t> step_band(cores, 0);
     std::vector<double> width(cores, 0.0);
-    std::vector<int> longest(cores, -1);
-    for (int c = 0; c < cores; ++c) {
-      if (small_sherd[c]) longest[c] = longest_border(c);
-    }
     for (auto v : cluster) {
-      const int b = tag[v];
-      for (int c = 0; c < cores; ++c) {
-        if (!small_sherd[c] || (b != c && b != longest[c])) continue;
-        const int other = b == c ? longest[c] : c;
-        const bool at_border = std::any_of(near[v].begin(), near[v].end(),
-                                           [&](std::uint32_t n) { return tag[n] == other; });
-        (b == c ? band_c : band_longest)[c] += at_border;
-        if (b == c) {
-          step_band[c] += beside_step[v];
-          width[c] = std::max(width[c], 2.0 * distance[v]);
-        }
-      }
+      if (!small_sherd[tag[v]]) continue;
+      step_band[tag[v]] += beside_step[v];
+      width[tag[v]] = std::max(width[tag[v]], 2.0 * distance[v]);
     }
     for (int c = 0; c < cores; ++c) {
       if (!small_sherd[c]) continue;
-      const double border_mm = border_length_mm(band_c[c], band_longest[c], radius);
+      const int longest = longest_border(c);
+      const double border_mm = border_length_mm(band[c][longest], band[longest][c], radius);
       if (step_band[c] < sizes.max_small_sherd_step_band_voxels &&
           border_mm < kNoNeckMinBorderShare * width[c])
         to_join[c] = 0;
