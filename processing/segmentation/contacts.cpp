@@ -11,26 +11,28 @@ namespace sherd::segmentation::detail {
 
 namespace {
 
-// Pairs (a, b) of parts (by `tag`; core_rgb.size() of them) that are one sherd's levels, judged
-// by their border among the voxels `among` and by the colours of their cores (`core_rgb`, sums)
-// and their widths (`width`, mm).
-std::vector<std::pair<int, int>> levels_of_one_sherd(
-    const Graph& near, const std::vector<Vec3f>& centres, const std::vector<std::uint32_t>& among,
-    const std::vector<int>& tag, const std::vector<double>& width,
-    const std::vector<Vec3f>& core_rgb, double radius) {
-  const int parts = static_cast<int>(core_rgb.size());
-  std::vector<std::vector<std::size_t>> contacts(parts, std::vector<std::size_t>(parts, 0));
+// The borders between the parts (by `tag`; `parts` of them) among the voxels `among`, by pair
+// (a, b) with a < b: how many 3-D neighbour pairs join them, and the heights of their step pairs —
+// neighbours in the top view (flattened onto the plate) that are not neighbours in 3-D. band[a][b]
+// counts the voxels of part a with a step pair to part b, for any a and b.
+struct StepBorders {
+  std::vector<std::vector<std::size_t>> contacts;
+  std::vector<std::vector<std::vector<float>>> heights;
+  std::vector<std::vector<std::size_t>> band;
+};
+StepBorders step_borders(const Graph& near, const std::vector<Vec3f>& centres,
+                         const std::vector<std::uint32_t>& among, const std::vector<int>& tag,
+                         int parts, double radius) {
+  StepBorders borders{
+      std::vector<std::vector<std::size_t>>(parts, std::vector<std::size_t>(parts, 0)),
+      std::vector<std::vector<std::vector<float>>>(parts, std::vector<std::vector<float>>(parts)),
+      std::vector<std::vector<std::size_t>>(parts, std::vector<std::size_t>(parts, 0))};
   for (auto v : among) {
-    for (auto n : near[v]) contacts[tag[v]][tag[n]] += tag[n] > tag[v];
+    for (auto n : near[v]) borders.contacts[tag[v]][tag[n]] += tag[n] > tag[v];
   }
-  // Step pairs: neighbours in the top view (flattened onto the plate) that are not
-  // neighbours in 3-D, with their difference in height.
   TopView top(centres, among);
   std::vector<int> found;
   const float radius2 = static_cast<float>(radius * radius);
-  std::vector<std::vector<std::vector<float>>> steps(parts, std::vector<std::vector<float>>(parts));
-  // The border's bands: the voxels of either part with a step pair to the other.
-  std::vector<std::vector<std::size_t>> band(parts, std::vector<std::size_t>(parts, 0));
   std::vector<int> beside;
   for (auto v : among) {
     top.search(centres[v], radius, found);
@@ -40,17 +42,28 @@ std::vector<std::pair<int, int>> levels_of_one_sherd(
       if (tag[n] == tag[v] || (centres[n] - centres[v]).squaredNorm() <= radius2) continue;
       add_once(beside, tag[n]);
       if (tag[n] > tag[v])
-        steps[tag[v]][tag[n]].push_back(std::abs(centres[n].z() - centres[v].z()));
+        borders.heights[tag[v]][tag[n]].push_back(std::abs(centres[n].z() - centres[v].z()));
     }
-    for (int b : beside) ++band[tag[v]][b];
+    for (int b : beside) ++borders.band[tag[v]][b];
   }
+  return borders;
+}
+
+// Pairs (a, b) of parts (by the `borders` among them; core_rgb.size() of them) that are one
+// sherd's levels, judged by their borders and by the colours of their cores (`core_rgb`, sums) and
+// their widths (`width`, mm).
+std::vector<std::pair<int, int>> levels_of_one_sherd(StepBorders& borders,
+                                                     const std::vector<double>& width,
+                                                     const std::vector<Vec3f>& core_rgb,
+                                                     double radius) {
+  const int parts = static_cast<int>(core_rgb.size());
   std::vector<std::pair<int, int>> levels;
   for (int a = 0; a < parts; ++a) {
     for (int b = a + 1; b < parts; ++b) {
-      auto& heights = steps[a][b];
-      const double border_mm = border_length_mm(band[a][b], band[b][a], radius);
+      auto& heights = borders.heights[a][b];
+      const double border_mm = border_length_mm(borders.band[a][b], borders.band[b][a], radius);
       const bool wall = level_wall(heights) &&
-                        contacts[a][b] <= kLevelMaxContactShare * heights.size() &&
+                        borders.contacts[a][b] <= kLevelMaxContactShare * heights.size() &&
                         border_mm >= kLevelMinBorderShare * std::min(width[a], width[b]);
       const bool one_clay = of_one_clay(core_rgb[a], width[a], core_rgb[b], width[b],
                                         kLevelMaxHueDifference, kLevelFaceMaxOffClayLine);
@@ -107,11 +120,13 @@ std::vector<std::vector<std::size_t>> border_bands(const Graph& near,
 
 // Pairs (a, b) of parts (by `tag`, widths `width` in mm) with no neck between them, among the
 // voxels `among` of the parts marked in `judged`; voxels `leaked` to another basin (leaked_to, when
-// given) are no part of a border.
+// given) are no part of a border. A pair whose surface runs on across the border (by its step
+// `borders`, see kSmoothMaxStepShare) needs a shorter one.
 std::vector<std::pair<int, int>> parts_without_neck(
     const Graph& near, const std::vector<std::uint32_t>& among, const std::vector<int>& tag,
     const std::vector<double>& width, const std::vector<std::uint8_t>& judged,
-    const std::vector<int>* leaked, const std::vector<Vec3f>& core_rgb, double radius) {
+    const std::vector<int>* leaked, const std::vector<Vec3f>& core_rgb, const StepBorders& borders,
+    double radius) {
   const int parts = static_cast<int>(core_rgb.size());
   const auto band = border_bands(near, among, tag, parts, leaked);
   std::vector<std::pair<int, int>> pairs;
@@ -122,7 +137,11 @@ std::vector<std::pair<int, int>> parts_without_neck(
       const double narrower_mm = std::min(width[a], width[b]);
       const bool one_clay = of_one_clay(core_rgb[a], width[a], core_rgb[b], width[b],
                                         kNoNeckMaxHueDifference, kFaceMaxOffClayLine);
-      if (border_mm >= kNoNeckMinBorderShare * narrower_mm && one_clay) pairs.emplace_back(a, b);
+      const bool smooth =
+          borders.heights[a][b].size() <= kSmoothMaxStepShare * borders.contacts[a][b] &&
+          (hue(core_rgb[a]) - hue(core_rgb[b])).norm() < kNoNeckMaxHueDifference;
+      const double least_share = smooth ? kSmoothMinBorderShare : kNoNeckMinBorderShare;
+      if (border_mm >= least_share * narrower_mm && one_clay) pairs.emplace_back(a, b);
     }
   }
   return pairs;
@@ -532,16 +551,16 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
       judged.push_back(v);
       width[tag[v]] = std::max(width[tag[v]], 2.0 * distance[v]);
     }
-    for (auto [a, b] : levels_of_one_sherd(near, centres, judged, tag, width, core_rgb, radius))
-      group.join(a, b);
+    auto borders = step_borders(near, centres, judged, tag, cores, radius);
+    for (auto [a, b] : levels_of_one_sherd(borders, width, core_rgb, radius)) group.join(a, b);
     // Leaving out leaked voxels only shortens borders, so they are looked for (two searches over
     // the cluster) only where a pair would join without them.
-    auto no_neck =
-        parts_without_neck(near, judged, tag, width, sherd_sized, nullptr, core_rgb, radius);
+    auto no_neck = parts_without_neck(near, judged, tag, width, sherd_sized, nullptr, core_rgb,
+                                      borders, radius);
     if (!no_neck.empty()) {
       const auto leaked = leaked_to(near, centres, judged, seeds, tag, sherd_sized, erosion);
-      no_neck =
-          parts_without_neck(near, judged, tag, width, sherd_sized, &leaked, core_rgb, radius);
+      no_neck = parts_without_neck(near, judged, tag, width, sherd_sized, &leaked, core_rgb,
+                                   borders, radius);
     }
     for (auto [a, b] : no_neck) group.join(a, b);
   }

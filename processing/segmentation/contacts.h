@@ -92,6 +92,21 @@ bool level_wall(std::vector<float>& heights);
 inline constexpr double kNoNeckMinBorderShare = 0.65;
 inline constexpr double kNoNeckMaxHueDifference = 0.0085;
 
+// Where the erosion cut one sherd whose surface runs on across the border, the two parts meet in
+// 3-D all along it and hardly a voxel of one lies above or below the other in the top view; two
+// sherds side by side meet at their broken edges, whose faces and heights stand as steps beside
+// the contact. So a pair of one hue (closer than kNoNeckMaxHueDifference; no fracture face, which
+// would stand as a step) with step pairs at most kSmoothMaxStepShare of its 3-D neighbour pairs
+// has no neck when its border is kSmoothMinBorderShare of the narrower part's width. Measured with
+// a debug build (pairs of sherd-sized cores' parts, with their truth, over 80 runs of 100 trays: 1
+// / 1001 / 5001 / … / 15001, 133001 / 135001 / … / 275001; 21,934 pairs): of the pairs of one
+// hue with step pairs at most 0.2 × their 3-D pairs, 35 were one sherd's and one two sherds'
+// touching at a single neighbour pair (269099, border 0.014 ×); two sherds' pairs came next at
+// 0.22–0.30 × (159007, 271037, 215065, 145076; borders 0.24–0.47 ×). Two of one sherd's pairs
+// were left split, at 0.012 and 0.085 × with borders 0.35 and 0.57 × (143086, 207049).
+inline constexpr double kSmoothMaxStepShare = 0.1;
+inline constexpr double kSmoothMinBorderShare = 0.3;
+
 // Splits one Euclidean cluster where sherds touch or lean on each other. A sherd's surface is
 // a patch that stays wide everywhere, while two sherds meet at a point or along a short stretch
 // of their edges: eroding the cluster (voxels within `erosion` of its boundary, measured along
