@@ -308,7 +308,8 @@ nlohmann::json summary_line(const Totals& t, bool by_step) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
+// A bad --real or --overview directory ends the run with its message, not an abort.
+int main(int argc, char** argv) try {
   CLI::App app{"bench_segmentation: simulated trays segmented against their per-point truth"};
   int trays = 100, million = 3;
   std::vector<std::uint64_t> seeds{1};
@@ -336,6 +337,7 @@ int main(int argc, char** argv) {
   app.add_flag("--by-step", by_step,
                "count each merged or split sherd by the segmentation step that left it so");
   CLI11_PARSE(app, argc, argv);
+  if (!overview_dir.empty()) std::filesystem::create_directories(overview_dir);
 
   Totals overall;
   double least_exact_share = 1.0;  // of the runs
@@ -411,4 +413,7 @@ int main(int argc, char** argv) {
     }
   }
   return 0;
+} catch (const std::exception& e) {
+  std::cerr << "bench_segmentation: " << e.what() << std::endl;
+  return 1;
 }
