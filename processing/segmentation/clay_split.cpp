@@ -128,9 +128,11 @@ constexpr float kFarFromClayHue = 0.05f;
 // reached through the contact before its own sherd (the crease at the face's top is not seen, so
 // 3-D leaves a gap there). The strip goes to the other part when it is greyer than its part's clay
 // by kSlopeFaceMinGreyer or more (no scatter of that clay), a face of the other's clay, and within
-// the clustering distance of the other part for kSlopeFaceMinNearShare of its voxels or more. The
-// hue alone cannot place such a strip when it lies on both clays' lines to grey (the rules above
-// leave it; the top view moved a sherd's own halves into each other, 241089).
+// the clustering distance of the other part for kSlopeFaceMinNearShare of its voxels or more — or,
+// where a gap in 3-D runs all along it (its whole top edge unseen), when it lies nearer the other
+// clay's line than its own part's. The hue alone cannot place such a strip when it lies on both
+// clays' lines to grey (the rules above leave it; the top view moved a sherd's own halves into each
+// other, 241089).
 // Measured on the voxels of bench trays (the 177 trays of 86 runs left with a sherd merged or
 // split at 5a60ffd, and the 100 of run 1001; strips of 40 voxels or more, 2.5 mm or less from the
 // part uphill at their 10th percentile): of the 30 strips of the uphill part's sherd, 26 pass the
@@ -142,6 +144,16 @@ constexpr float kFarFromClayHue = 0.05f;
 // 205052, a tray already failing). Eight runs never run before (321001, …, 335001): no count
 // changed, 12 trays gained precision or recall, none lost. The 1 M-point tray (ten rounds taking
 // turns): fastest 534 ms before, 554 ms after.
+// The gap: with a debug build on 44 of those 80 runs, of the strips passing the colour tests but
+// held back by the near share, 14 were of the uphill part's sherd (each a piece of a sherd left in
+// its neighbour, 62–205 voxels) and 7 of their own part's (59–76 voxels; moved, each would cost its
+// tray 0.2–0.3 % of precision, and two trays of the suite would fail). Dropping the near share
+// moved them all; the hue lets 8 of the 14 go (0.0002–0.0027 off the other's line, 0.0025 or more
+// or no face off their part's) and one of the 7 (137009: 0.0005 against 0.0011). Over the 80 runs,
+// against the binary before in the same session: 6 trays made right (165091, 173008, 187094,
+// 215066, 241021, 257048), none wrong; split sherds 61 → 55, merged 52; 18 trays gained precision
+// or recall, 2 lost (137009 0.44 %, 275042 0.25 %). 16 runs never run before (609001, …, 639001):
+// 5 trays made right, none wrong; 8 gained, one lost 0.28 %.
 constexpr double kSteepSlope = 0.6;        // height per run, ≈ 31°
 constexpr double kSlopeRadiusMm = 1.5;     // plane fit, in the top view
 constexpr double kSlopeMaxHeightMm = 6.0;  // of the part's voxels in the plane fit
@@ -466,9 +478,10 @@ std::vector<std::vector<std::uint32_t>> faces_to_their_clay(
                               [&](std::uint32_t n) { return top.part_of[n] == q; });
       }
       const Eigen::Vector2f h = region_hue(region);
-      if (static_cast<double>(near_q) >= kSlopeFaceMinNearShare * region.size() &&
-          greyer(h, clay[p]) && (h - clay[p]).norm() >= kSlopeFaceMinGreyer &&
-          std::isfinite(face_offset_of(clay[q], h))) {
+      const float offset_q = face_offset_of(clay[q], h);
+      const bool near_in_3d = static_cast<double>(near_q) >= kSlopeFaceMinNearShare * region.size();
+      if ((near_in_3d || offset_q < face_offset_of(clay[p], h)) && greyer(h, clay[p]) &&
+          (h - clay[p]).norm() >= kSlopeFaceMinGreyer && std::isfinite(offset_q)) {
         for (auto v : region) moved_to[v] = q;
       }
     }

@@ -11,6 +11,20 @@ namespace sherd::segmentation::detail {
 
 namespace {
 
+// Calls step(n) for each step pair (v, n) of voxel v: n a voxel of `top` within `radius` of v in
+// the top view (flattened onto the plate) but not in 3-D, and of another part (by `tag`).
+template <class Step>
+void for_each_step_pair(TopView& top, const std::vector<Vec3f>& centres,
+                        const std::vector<int>& tag, std::uint32_t v, double radius,
+                        std::vector<int>& found, Step&& step) {
+  const float radius2 = static_cast<float>(radius * radius);
+  top.search(centres[v], radius, found);
+  for (auto f : found) {
+    const auto n = top.voxel_at[f];
+    if (tag[n] != tag[v] && (centres[n] - centres[v]).squaredNorm() > radius2) step(n);
+  }
+}
+
 // The borders between the parts (by `tag`; `parts` of them) among the voxels `among`, by pair
 // (a, b) with a < b: how many 3-D neighbour pairs join them, and the heights of their step pairs —
 // neighbours in the top view (flattened onto the plate) that are not neighbours in 3-D. band[a][b]
@@ -32,18 +46,14 @@ StepBorders step_borders(const Graph& near, const std::vector<Vec3f>& centres,
   }
   TopView top(centres, among);
   std::vector<int> found;
-  const float radius2 = static_cast<float>(radius * radius);
   std::vector<int> beside;
   for (auto v : among) {
-    top.search(centres[v], radius, found);
     beside.clear();
-    for (auto f : found) {
-      const auto n = top.voxel_at[f];
-      if (tag[n] == tag[v] || (centres[n] - centres[v]).squaredNorm() <= radius2) continue;
+    for_each_step_pair(top, centres, tag, v, radius, found, [&](std::uint32_t n) {
       add_once(beside, tag[n]);
       if (tag[n] > tag[v])
         borders.heights[tag[v]][tag[n]].push_back(std::abs(centres[n].z() - centres[v].z()));
-    }
+    });
     for (int b : beside) ++borders.band[tag[v]][b];
   }
   return borders;
@@ -282,18 +292,14 @@ StepPairs step_pairs(const std::vector<Vec3f>& centres, const std::vector<std::u
   TopView top(centres, cluster);
   std::vector<std::vector<std::size_t>> pairs(basins);
   std::vector<int> found;
-  const float radius2 = static_cast<float>(radius * radius);
   for (auto v : cluster) {
     if (!asked[tag[v]]) continue;
     auto& counts = pairs[tag[v]];
     counts.resize(basins, 0);
-    top.search(centres[v], radius, found);
-    for (auto f : found) {
-      const auto n = top.voxel_at[f];
-      if (tag[n] == tag[v] || (centres[n] - centres[v]).squaredNorm() <= radius2) continue;
+    for_each_step_pair(top, centres, tag, v, radius, found, [&](std::uint32_t n) {
       ++counts[tag[n]];
       steps.beside_step[v] = 1;
-    }
+    });
   }
   for (int c = 0; c < basins; ++c) {
     const auto& counts = pairs[c];

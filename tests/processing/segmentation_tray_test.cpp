@@ -457,6 +457,9 @@ std::string case_name(const ::testing::TestParamInfo<TrayOfRun>& info) {
 //   uphill side it lies on: the slope tells whose material lies behind it (seed 139001's tray
 //   139033, seed 213001's 213014 and seed 249001's 249025: a sherd's recall 0.83, 0.87 and 0.88
 //   before).
+// * the same with a gap in 3-D all along it, hardly within the clustering distance of its sherd,
+//   its hue nearer its own clay's line than the part's (sherd 1 of seed 165001's tray 165091 and
+//   sherd 9 of seed 173001's tray 173008: their recall 0.80 and 0.76 before).
 // A narrow sherd touching a wider one, with no core of its own (its region 3 mm deep reaches into
 // the wider sherd, or is too small) but a lobe of the depth that falls 3.6–4.6 mm to the contact,
 // of a clay 0.014–0.018 off the other's line (sherd 4 of seed 133001's tray 133062; sherd 4 of
@@ -572,6 +575,8 @@ INSTANTIATE_TEST_SUITE_P(
                       TrayOfRun{"PieceInTheNeighbour_FaceFallingAwayFromItsSherd", 139001, 139033},
                       TrayOfRun{"PieceInTheNeighbour_FaceFallingAwayFromItsSherd", 213001, 213014},
                       TrayOfRun{"PieceInTheNeighbour_FaceFallingAwayFromItsSherd", 249001, 249025},
+                      TrayOfRun{"PieceInTheNeighbour_FaceFallingAwayAcrossAGap", 165001, 165091},
+                      TrayOfRun{"PieceInTheNeighbour_FaceFallingAwayAcrossAGap", 173001, 173008},
                       TrayOfRun{"OneAsTwo_HalvesOnEachOthersLine", 241001, 241089},
                       TrayOfRun{"TwoAsOne_NarrowSherdWithALobe", 133001, 133062},
                       TrayOfRun{"TwoAsOne_NarrowSherdWithALobe", 137001, 137014},
