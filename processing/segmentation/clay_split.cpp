@@ -146,14 +146,15 @@ constexpr float kFarFromClayHue = 0.05f;
 // turns): fastest 534 ms before, 554 ms after.
 // The gap: with a debug build on 44 of those 80 runs, of the strips passing the colour tests but
 // held back by the near share, 14 were of the uphill part's sherd (each a piece of a sherd left in
-// its neighbour, 62–205 voxels) and 7 of their own part's (59–76 voxels; moved, each would cost its
-// tray 0.2–0.3 % of precision, and two trays of the suite would fail). Dropping the near share
-// moved them all; the hue lets 8 of the 14 go (0.0002–0.0027 off the other's line, 0.0025 or more
-// or no face off their part's) and one of the 7 (137009: 0.0005 against 0.0011). Over the 80 runs,
-// against the binary before in the same session: 6 trays made right (165091, 173008, 187094,
-// 215066, 241021, 257048), none wrong; split sherds 61 → 55, merged 52; 18 trays gained precision
-// or recall, 2 lost (137009 0.44 %, 275042 0.25 %). 16 runs never run before (609001, …, 639001):
-// 5 trays made right, none wrong; 8 gained, one lost 0.28 %.
+// its neighbour, 62–205 voxels) and 7 of their own part's (59–105 voxels). Dropping the near share
+// moved them all: of the trays checked one by one, 11074, 165091 and 173008 came right, 137032 and
+// 173061 lost 0.24 and 0.29 % of precision, and two trays of the suite failed; the hue lets 8 of
+// the 14 go (0.0002–0.0027 off the other's line, 0.0025 or more or no face off their part's) and
+// one of the 7 (137009: 0.0005 against 0.0011). Over the 80 runs, against the binary before in the
+// same session: 6 trays made right (165091, 173008, 187094, 215066, 241021, 257048), none wrong;
+// split sherds 61 → 55, merged 52; 18 trays gained precision or recall, 2 lost (137009 0.44 %,
+// 275042 0.25 %). 16 runs never run before (609001, …, 639001): 5 trays made right, none wrong; 8
+// gained, one lost 0.28 %.
 constexpr double kSteepSlope = 0.6;        // height per run, ≈ 31°
 constexpr double kSlopeRadiusMm = 1.5;     // plane fit, in the top view
 constexpr double kSlopeMaxHeightMm = 6.0;  // of the part's voxels in the plane fit
