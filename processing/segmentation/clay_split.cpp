@@ -325,6 +325,108 @@ std::vector<std::vector<std::uint32_t>> pieces_to_their_sherd(
   return with_joined(std::move(parts), group);
 }
 
+// A part can hold pieces apart in 3-D: the joins across unseen walls, of levels and of folds join
+// parts that only meet in the top view, and the face rules move regions along the top view. A
+// piece (a 3-D component of its part, not the largest, of kDetachedMinMm2 or more) that shares
+// kDetachedMinPairsPerVoxel neighbour pairs per voxel or more with one other part, of its clay
+// (of_one_clay, as for the pieces above), may be that part's: a sherd's fracture face strip,
+// greyer than its surface and so nearer the line of the neighbour's clay, joined to that neighbour
+// across a step (seed 231001's tray 231005: a face part of 487 voxels, 1,445 neighbour pairs with
+// its own sherd's part and none with the one it joined). Or it is its own part's, leaning on the
+// neighbour: then colour alone cannot tell, the two clays' lines to grey lie close. A face strip
+// hangs from its sherd's surface, so where it meets that sherd, the sherd lies higher; a piece
+// leaning on a neighbour meets it at its foot. So the piece goes when the neighbour's voxels
+// touching it lie higher on average than its own voxels touching the neighbour, or when its hue
+// lies nearer the neighbour's clay line than the rest of its part's (face_offset_of).
+// Measured with a debug build on the final parts of the 80 runs (1, 1001, 5001, …, 15001; 133001,
+// …, 275001; 497d495's logic), pieces of 50 voxels or more with 2 pairs per voxel or more with one
+// part, of one clay with it: 19 of that part's sherd (2.21–18.3 pairs per voxel), 2 of their own
+// part's (137009: 96 voxels, 3.39 pairs per voxel; 137096: 67 voxels, 2.21). Both of the own
+// part's meet the neighbour lower than they touch it and lie nearer their part's line; of the 19,
+// 10 meet the neighbour higher, 10 lie nearer its line, 16 one or the other. The 3 held back
+// (231005's 198 voxels, 247074, 275042) lie nearer their part's line and meet the neighbour at
+// nearly the same height (0.02–0.20 of the piece's height lower).
+constexpr double kDetachedMinMm2 = 35.0;
+constexpr double kDetachedMinPairsPerVoxel = 2.0;
+
+std::vector<std::vector<std::uint32_t>> detached_pieces_to_their_sherd(
+    std::vector<std::vector<std::uint32_t>> parts, const Graph& near,
+    const std::vector<Vec3f>& centres, const std::vector<Vec3f>& voxel_rgb, double radius,
+    double leaf) {
+  const auto min_piece = static_cast<std::size_t>(kDetachedMinMm2 / (leaf * leaf));
+  std::vector<int> part_of(near.size(), -1);
+  for (std::size_t p = 0; p < parts.size(); ++p) {
+    for (auto v : parts[p]) part_of[v] = static_cast<int>(p);
+  }
+  const std::vector<Vec3f> colour = colour_sums(parts, voxel_rgb);
+  std::vector<int> moved_to(near.size(), -1);
+  std::vector<std::uint8_t> mark(near.size(), 0);
+  std::map<int, std::size_t> pairs;  // with each other part
+  // Whether part q's voxels touching `piece` lie higher on average than the piece's touching q.
+  std::vector<std::uint8_t> counted(near.size(), 0);
+  auto hangs_from = [&](const std::vector<std::uint32_t>& piece, int q) {
+    double piece_z = 0.0, q_z = 0.0;
+    std::size_t n_piece = 0, n_q = 0;
+    for (auto v : piece) {
+      bool touches = false;
+      for (auto n : near[v]) {
+        if (part_of[n] != q) continue;
+        touches = true;
+        if (counted[n] == 0) counted[n] = 1, q_z += centres[n].z(), ++n_q;
+      }
+      if (touches) piece_z += centres[v].z(), ++n_piece;
+    }
+    for (auto v : piece) {
+      for (auto n : near[v]) counted[n] = 0;
+    }
+    return q_z / static_cast<double>(n_q) > piece_z / static_cast<double>(n_piece);
+  };
+  for (std::size_t p = 0; p < parts.size(); ++p) {
+    for (auto v : parts[p]) mark[v] = 1;
+    auto pieces = components(near, parts[p], mark);
+    for (auto v : parts[p]) mark[v] = 0;
+    if (pieces.size() < 2) continue;
+    const auto largest =
+        std::max_element(pieces.begin(), pieces.end(),
+                         [](const auto& a, const auto& b) { return a.size() < b.size(); }) -
+        pieces.begin();
+    for (std::size_t k = 0; k < pieces.size(); ++k) {
+      const auto& piece = pieces[k];
+      if (static_cast<std::ptrdiff_t>(k) == largest || piece.size() < min_piece) continue;
+      pairs.clear();
+      for (auto v : piece) {
+        for (auto n : near[v]) {
+          if (part_of[n] >= 0 && part_of[n] != static_cast<int>(p)) ++pairs[part_of[n]];
+        }
+      }
+      const auto most =
+          std::max_element(pairs.begin(), pairs.end(),
+                           [](const auto& a, const auto& b) { return a.second < b.second; });
+      if (most == pairs.end() ||
+          static_cast<double>(most->second) < kDetachedMinPairsPerVoxel * piece.size())
+        continue;
+      const int q = most->first;
+      Vec3f piece_rgb = Vec3f::Zero();
+      for (auto v : piece) piece_rgb += voxel_rgb[v];
+      if (!of_one_clay(piece_rgb, width_of(near, centres, piece, radius, mark), colour[q],
+                       width_of(near, centres, parts[q], radius, mark), kNoNeckMaxHueDifference,
+                       kPieceMaxOffClayLine))
+        continue;
+      const Eigen::Vector2f h = hue(piece_rgb);
+      if (hangs_from(piece, q) ||
+          face_offset_of(hue(colour[q]), h) < face_offset_of(hue(colour[p] - piece_rgb), h)) {
+        for (auto v : piece) moved_to[v] = q;
+      }
+    }
+  }
+  std::vector<std::vector<std::uint32_t>> result(parts.size());
+  for (std::size_t p = 0; p < parts.size(); ++p) {
+    for (auto v : parts[p]) result[moved_to[v] >= 0 ? moved_to[v] : p].push_back(v);
+  }
+  std::erase_if(result, [](const auto& r) { return r.empty(); });
+  return result;
+}
+
 std::vector<std::vector<std::uint32_t>> faces_to_their_clay(
     std::vector<std::vector<std::uint32_t>> parts, const Graph& near,
     const std::vector<Vec3f>& centres, const std::vector<Vec3f>& voxel_rgb, double radius,

@@ -26,6 +26,15 @@ std::vector<std::vector<std::uint32_t>> pieces_to_their_sherd(
     const Graph& near, const std::vector<Vec3f>& centres, const std::vector<Vec3f>& voxel_rgb,
     double radius);
 
+// `parts` with each piece of a part that lies apart from the rest of it in 3-D but joined all along
+// to another part of its clay, hanging from it or nearer its clay's line, moved to that part: a
+// sherd's face strip that a join across a step took along with the part it lay beside in the top
+// view. The rule and its measurements: at kDetachedMinPairsPerVoxel in clay_split.cpp.
+std::vector<std::vector<std::uint32_t>> detached_pieces_to_their_sherd(
+    std::vector<std::vector<std::uint32_t>> parts, const Graph& near,
+    const std::vector<Vec3f>& centres, const std::vector<Vec3f>& voxel_rgb, double radius,
+    double leaf);
+
 // `parts` with the regions that are another part's fracture face (its clay mixed with grey, by hue,
 // by where they lie in the top view and by the side their slope faces) moved to that part. The
 // rules and their measurements: at kRegionMaxPairsPerVoxel and kSteepSlope in clay_split.cpp.

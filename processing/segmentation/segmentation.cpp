@@ -139,6 +139,9 @@ std::vector<std::vector<std::uint32_t>> clusters(const std::vector<Vec3f>& point
     keep("narrow", parts);
     parts = join_folded_parts(std::move(parts), voxels.centres, voxel_rgb, tolerance, leaf);
     keep("folds", parts);
+    parts = detached_pieces_to_their_sherd(std::move(parts), near, voxels.centres, voxel_rgb,
+                                           tolerance, leaf);
+    keep("detached", parts);
   }
   return points_of(voxels, parts);
 }
