@@ -325,27 +325,26 @@ std::vector<std::vector<std::uint32_t>> pieces_to_their_sherd(
   return with_joined(std::move(parts), group);
 }
 
-// A part can hold pieces apart in 3-D: the joins across unseen walls, of levels and of folds join
-// parts that only meet in the top view, and the face rules move regions along the top view. A
-// piece (a 3-D component of its part, not the largest, of kDetachedMinMm2 or more) that shares
-// kDetachedMinPairsPerVoxel neighbour pairs per voxel or more with one other part, of its clay
-// (of_one_clay, as for the pieces above), may be that part's: a sherd's fracture face strip,
-// greyer than its surface and so nearer the line of the neighbour's clay, joined to that neighbour
-// across a step (seed 231001's tray 231005: a face part of 487 voxels, 1,445 neighbour pairs with
-// its own sherd's part and none with the one it joined). Or it is its own part's, leaning on the
-// neighbour: then colour alone cannot tell, the two clays' lines to grey lie close. A face strip
+// A part can hold pieces apart in 3-D: the watershed cuts along the top view, the joins across
+// unseen walls, of levels and of folds join parts that only meet in the top view, and the face
+// rules move regions along it. A piece (a 3-D component of its part, not the largest, of
+// kDetachedMinMm2 or more) that shares kDetachedMinPairsPerVoxel neighbour pairs per voxel or more
+// with one other part may be that part's: a sherd's fracture face strip, greyer than its surface
+// and so nearer the line of the neighbour's clay, left in that neighbour (seed 231001's tray
+// 231005: a face part of 487 voxels joined across a step, 1,445 neighbour pairs with its own
+// sherd's part and none with the one it joined). Or it is its own part's, leaning on the
+// neighbour, and colour cannot tell: the two clays' lines to grey often lie close. A face strip
 // hangs from its sherd's surface, so where it meets that sherd, the sherd lies higher; a piece
-// leaning on a neighbour meets it at its foot. So the piece goes when the neighbour's voxels
-// touching it lie higher on average than its own voxels touching the neighbour, or when its hue
-// lies nearer the neighbour's clay line than the rest of its part's (face_offset_of).
+// leaning on a neighbour meets it at its foot. So the piece goes when the other part's voxels
+// touching it lie higher on average than its own voxels touching that part, or when it is of one
+// clay with that part (of_one_clay, as for the pieces above) and its hue lies nearer that part's
+// clay line than the rest of its own part's (face_offset_of).
 // Measured with a debug build on the final parts of the 80 runs (1, 1001, 5001, …, 15001; 133001,
 // …, 275001; 497d495's logic), pieces of 50 voxels or more with 2 pairs per voxel or more with one
-// part, of one clay with it: 19 of that part's sherd (2.21–18.3 pairs per voxel), 2 of their own
-// part's (137009: 96 voxels, 3.39 pairs per voxel; 137096: 67 voxels, 2.21). Both of the own
-// part's meet the neighbour lower than they touch it and lie nearer their part's line; of the 19,
-// 10 meet the neighbour higher, 10 lie nearer its line, 16 one or the other. The 3 held back
-// (231005's 198 voxels, 247074, 275042) lie nearer their part's line and meet the neighbour at
-// nearly the same height (0.02–0.20 of the piece's height lower).
+// part: of the 17 of their own part's sherd, every one meets that part lower (0.15–3.2 mm on
+// average), and the 2 of one clay with it (137009, 137096) lie nearer their own part's line; of
+// the 39 of that part's sherd, 29 meet it higher and 3 more are of one clay with it and nearer its
+// line. The 7 held back meet it 0.23–1.9 mm lower and lie nearer their own part's line.
 constexpr double kDetachedMinMm2 = 35.0;
 constexpr double kDetachedMinPairsPerVoxel = 2.0;
 
@@ -408,13 +407,12 @@ std::vector<std::vector<std::uint32_t>> detached_pieces_to_their_sherd(
       const int q = most->first;
       Vec3f piece_rgb = Vec3f::Zero();
       for (auto v : piece) piece_rgb += voxel_rgb[v];
-      if (!of_one_clay(piece_rgb, width_of(near, centres, piece, radius, mark), colour[q],
-                       width_of(near, centres, parts[q], radius, mark), kNoNeckMaxHueDifference,
-                       kPieceMaxOffClayLine))
-        continue;
       const Eigen::Vector2f h = hue(piece_rgb);
       if (hangs_from(piece, q) ||
-          face_offset_of(hue(colour[q]), h) < face_offset_of(hue(colour[p] - piece_rgb), h)) {
+          (of_one_clay(piece_rgb, width_of(near, centres, piece, radius, mark), colour[q],
+                       width_of(near, centres, parts[q], radius, mark), kNoNeckMaxHueDifference,
+                       kPieceMaxOffClayLine) &&
+           face_offset_of(hue(colour[q]), h) < face_offset_of(hue(colour[p] - piece_rgb), h))) {
         for (auto v : piece) moved_to[v] = q;
       }
     }

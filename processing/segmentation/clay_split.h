@@ -27,9 +27,9 @@ std::vector<std::vector<std::uint32_t>> pieces_to_their_sherd(
     double radius);
 
 // `parts` with each piece of a part that lies apart from the rest of it in 3-D but joined all along
-// to another part of its clay, hanging from it or nearer its clay's line, moved to that part: a
-// sherd's face strip that a join across a step took along with the part it lay beside in the top
-// view. The rule and its measurements: at kDetachedMinPairsPerVoxel in clay_split.cpp.
+// to another part, hanging from it (or of its clay and nearer its clay's line), moved to that part:
+// a sherd's face strip that the watershed or a join along the top view left with the part it lay
+// beside. The rule and its measurements: at kDetachedMinPairsPerVoxel in clay_split.cpp.
 std::vector<std::vector<std::uint32_t>> detached_pieces_to_their_sherd(
     std::vector<std::vector<std::uint32_t>> parts, const Graph& near,
     const std::vector<Vec3f>& centres, const std::vector<Vec3f>& voxel_rgb, double radius,
