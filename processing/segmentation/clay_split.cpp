@@ -344,7 +344,8 @@ std::vector<std::vector<std::uint32_t>> pieces_to_their_sherd(
 // part: of the 17 of their own part's sherd, every one meets that part lower (0.15–3.2 mm on
 // average), and the 2 of one clay with it (137009, 137096) lie nearer their own part's line; of
 // the 39 of that part's sherd, 29 meet it higher and 3 more are of one clay with it and nearer its
-// line. The 7 held back meet it 0.23–1.9 mm lower and lie nearer their own part's line.
+// line. The 7 held back meet it 0.23–1.9 mm lower, and none lies nearer its line than its own
+// part's.
 constexpr double kDetachedMinMm2 = 35.0;
 constexpr double kDetachedMinPairsPerVoxel = 2.0;
 
