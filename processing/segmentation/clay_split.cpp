@@ -236,6 +236,43 @@ std::vector<int> uphill_parts(TopView& top, const std::vector<Vec3f>& centres) {
   return uphill;
 }
 
+// The part of each voxel of `parts`, -1 for the other voxels.
+std::vector<int> part_index(const std::vector<std::vector<std::uint32_t>>& parts,
+                            std::size_t n_voxels) {
+  std::vector<int> part_of(n_voxels, -1);
+  for (std::size_t p = 0; p < parts.size(); ++p) {
+    for (auto v : parts[p]) part_of[v] = static_cast<int>(p);
+  }
+  return part_of;
+}
+
+// The part other than `own` with which `voxels` share the most neighbour pairs, and how many
+// (-1 and 0 when they touch none).
+std::pair<int, std::size_t> most_touched_part(const std::vector<std::uint32_t>& voxels, int own,
+                                              const std::vector<int>& part_of, const Graph& near) {
+  std::map<int, std::size_t> pairs;
+  for (auto v : voxels) {
+    for (auto n : near[v]) {
+      if (part_of[n] >= 0 && part_of[n] != own) ++pairs[part_of[n]];
+    }
+  }
+  const auto most = std::max_element(
+      pairs.begin(), pairs.end(), [](const auto& a, const auto& b) { return a.second < b.second; });
+  if (most == pairs.end()) return {-1, 0};
+  return {most->first, most->second};
+}
+
+// `parts` with each voxel v where moved_to[v] >= 0 moved to that part, the emptied parts dropped.
+std::vector<std::vector<std::uint32_t>> with_moved(
+    const std::vector<std::vector<std::uint32_t>>& parts, const std::vector<int>& moved_to) {
+  std::vector<std::vector<std::uint32_t>> result(parts.size());
+  for (std::size_t p = 0; p < parts.size(); ++p) {
+    for (auto v : parts[p]) result[moved_to[v] >= 0 ? moved_to[v] : p].push_back(v);
+  }
+  std::erase_if(result, [](const auto& r) { return r.empty(); });
+  return result;
+}
+
 }  // namespace
 
 std::vector<std::vector<std::uint32_t>> split_by_clay(
@@ -293,29 +330,16 @@ std::vector<std::vector<std::uint32_t>> pieces_to_their_sherd(
     std::vector<std::vector<std::uint32_t>> parts, const std::vector<int>& split_from,
     const Graph& near, const std::vector<Vec3f>& centres, const std::vector<Vec3f>& voxel_rgb,
     double radius) {
-  std::vector<int> part_of(near.size(), -1);
-  for (std::size_t p = 0; p < parts.size(); ++p) {
-    for (auto v : parts[p]) part_of[v] = static_cast<int>(p);
-  }
+  const std::vector<int> part_of = part_index(parts, near.size());
   const std::vector<Vec3f> colour = colour_sums(parts, voxel_rgb);
   Groups group(static_cast<int>(parts.size()));
   std::vector<std::uint8_t> inside(near.size(), 0);
-  std::map<int, std::size_t> pairs;  // with each other part
   for (std::size_t p = 0; p < parts.size(); ++p) {
     if (split_from[p] < 0) continue;
-    pairs.clear();
-    for (auto v : parts[p]) {
-      for (auto n : near[v]) {
-        if (part_of[n] >= 0 && part_of[n] != static_cast<int>(p)) ++pairs[part_of[n]];
-      }
-    }
-    const auto most =
-        std::max_element(pairs.begin(), pairs.end(),
-                         [](const auto& a, const auto& b) { return a.second < b.second; });
-    if (most == pairs.end()) continue;
-    const int q = most->first;
+    const auto [q, pairs] = most_touched_part(parts[p], static_cast<int>(p), part_of, near);
+    if (q < 0) continue;
     if (split_from[q] == split_from[p] ||
-        static_cast<double>(most->second) < kPieceMinPairsPerVoxel * parts[p].size())
+        static_cast<double>(pairs) < kPieceMinPairsPerVoxel * parts[p].size())
       continue;
     if (of_one_clay(colour[p], width_of(near, centres, parts[p], radius, inside), colour[q],
                     width_of(near, centres, parts[q], radius, inside), kNoNeckMaxHueDifference,
@@ -354,14 +378,10 @@ std::vector<std::vector<std::uint32_t>> detached_pieces_to_their_sherd(
     const std::vector<Vec3f>& centres, const std::vector<Vec3f>& voxel_rgb, double radius,
     double leaf) {
   const auto min_piece = static_cast<std::size_t>(kDetachedMinMm2 / (leaf * leaf));
-  std::vector<int> part_of(near.size(), -1);
-  for (std::size_t p = 0; p < parts.size(); ++p) {
-    for (auto v : parts[p]) part_of[v] = static_cast<int>(p);
-  }
+  const std::vector<int> part_of = part_index(parts, near.size());
   const std::vector<Vec3f> colour = colour_sums(parts, voxel_rgb);
   std::vector<int> moved_to(near.size(), -1);
   std::vector<std::uint8_t> mark(near.size(), 0);
-  std::map<int, std::size_t> pairs;  // with each other part
   // Whether part q's voxels touching `piece` lie higher on average than the piece's touching q.
   std::vector<std::uint8_t> counted(near.size(), 0);
   auto hangs_from = [&](const std::vector<std::uint32_t>& piece, int q) {
@@ -393,19 +413,8 @@ std::vector<std::vector<std::uint32_t>> detached_pieces_to_their_sherd(
     for (std::size_t k = 0; k < pieces.size(); ++k) {
       const auto& piece = pieces[k];
       if (static_cast<std::ptrdiff_t>(k) == largest || piece.size() < min_piece) continue;
-      pairs.clear();
-      for (auto v : piece) {
-        for (auto n : near[v]) {
-          if (part_of[n] >= 0 && part_of[n] != static_cast<int>(p)) ++pairs[part_of[n]];
-        }
-      }
-      const auto most =
-          std::max_element(pairs.begin(), pairs.end(),
-                           [](const auto& a, const auto& b) { return a.second < b.second; });
-      if (most == pairs.end() ||
-          static_cast<double>(most->second) < kDetachedMinPairsPerVoxel * piece.size())
-        continue;
-      const int q = most->first;
+      const auto [q, pairs] = most_touched_part(piece, static_cast<int>(p), part_of, near);
+      if (q < 0 || static_cast<double>(pairs) < kDetachedMinPairsPerVoxel * piece.size()) continue;
       Vec3f piece_rgb = Vec3f::Zero();
       for (auto v : piece) piece_rgb += voxel_rgb[v];
       const Eigen::Vector2f h = hue(piece_rgb);
@@ -418,12 +427,7 @@ std::vector<std::vector<std::uint32_t>> detached_pieces_to_their_sherd(
       }
     }
   }
-  std::vector<std::vector<std::uint32_t>> result(parts.size());
-  for (std::size_t p = 0; p < parts.size(); ++p) {
-    for (auto v : parts[p]) result[moved_to[v] >= 0 ? moved_to[v] : p].push_back(v);
-  }
-  std::erase_if(result, [](const auto& r) { return r.empty(); });
-  return result;
+  return with_moved(parts, moved_to);
 }
 
 std::vector<std::vector<std::uint32_t>> faces_to_their_clay(
@@ -589,12 +593,7 @@ std::vector<std::vector<std::uint32_t>> faces_to_their_clay(
     }
     for (auto v : part) mark[v] = 0;
   }
-  std::vector<std::vector<std::uint32_t>> result(n_parts);
-  for (int p = 0; p < n_parts; ++p) {
-    for (auto v : parts[p]) result[moved_to[v] >= 0 ? moved_to[v] : p].push_back(v);
-  }
-  std::erase_if(result, [](const auto& r) { return r.empty(); });
-  return result;
+  return with_moved(parts, moved_to);
 }
 
 }  // namespace sherd::segmentation::detail
