@@ -581,6 +581,7 @@ std::vector<std::vector<std::uint32_t>> join_across_unseen_walls(
     double erosion, const CoreSizes& sizes, double leaf) {
   const int n_parts = static_cast<int>(parts.size());
   const auto min_voxels = static_cast<std::size_t>(kWallPartMinMm2 / (leaf * leaf));
+  const auto large_voxels = static_cast<std::size_t>(kWallLargePartMm2 / (leaf * leaf));
   std::vector<std::uint8_t> cored(n_parts, 0);
   std::vector<int> narrow;
   for (int p = 0; p < n_parts; ++p) {
@@ -619,7 +620,8 @@ std::vector<std::vector<std::uint32_t>> join_across_unseen_walls(
       }
       for (int q : beside) ++bordering[q];
     }
-    float best = kWallMaxOffClayLine;
+    float best = parts[p].size() >= large_voxels ? static_cast<float>(kFaceMaxOffClayLine)
+                                                 : kWallMaxOffClayLine;
     for (const auto& [q, n] : bordering) {
       const float off = off_either_line(colour[p], colour[q]);
       if ((n < kWallMinBorderShare * parts[p].size() && !level_wall(steps[q])) ||

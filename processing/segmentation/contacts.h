@@ -251,6 +251,17 @@ inline constexpr double kWallPartMinMm2 = 40.0;
 inline constexpr double kWallMinBorderShare = 0.25;
 inline constexpr double kWallMaxOffClayLine = 0.015;
 inline constexpr double kWallMaxContactShare = 0.05;
+// A piece as large as a small sherd (kWallLargePartMm2 or more) joins only within a face's bound of
+// the clay line (kFaceMaxOffClayLine, clay.h): the colour of so many points lies close to its
+// sherd's line, and whole small sherds without a core beside a sherd of a close clay came in under
+// the strips' bound. Measured with a debug build (every join of this rule with its truth, 43 of the
+// 80 runs: 1 / 1001 / 5001 / 7001 / 11001 / 13001 / 15001, 133001 / 135001 / … / 203001): 170
+// joins of a piece to its own sherd, 6 to another. The own pieces of 250 mm² or more (13, up to 544
+// mm²) lay 0.0000–0.0040 off the clay line, one of 217 mm² 0.0101 (161071); five of the six wrong
+// joins were pieces of 279–410 mm², 0.0098–0.0136 off (137045, 143093, 159037, 195088, 201032: a
+// whole small sherd, or 57–60 % of a sherd the watershed cut), the sixth a 45 mm² crumb (201025).
+// A seventh seen since (243017: 344 mm² behind a level's wall, 0.0035 off) stays joined.
+inline constexpr double kWallLargePartMm2 = 250.0;
 
 // `parts` (voxel lists) with the narrow pieces joined to their sherds; `depth` is each voxel's
 // distance from its cluster's boundary. A part has a core with min_core_voxels beyond the

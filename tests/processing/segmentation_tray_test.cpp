@@ -524,6 +524,9 @@ std::string case_name(const ::testing::TestParamInfo<TrayOfRun>& info) {
 // from that part in 3-D and joined all along to its own sherd's part (7.5 neighbour pairs per
 // voxel), its hue nearer that sherd's clay line (sherd 2 of seed 247001's tray 247008: its recall
 // 0.85 before).
+// A whole small sherd, 410 mm² with no core of its own, beside a sherd of a clay whose line to grey
+// runs 0.0104 from its colour, behind an even step: taken for a strip of that sherd's edge before
+// (sherds 11 and 18 of seed 159001's tray 159037: found as one).
 // One sherd whose surface runs on across the border where the erosion cut it: its two parts meet
 // in 3-D along a border 0.57 × the narrower's width, with 17 step pairs beside 199 neighbour pairs,
 // hues 0.0023 apart (sherd 1 of seed 207001's tray 207049: found as two before).
@@ -623,7 +626,8 @@ INSTANTIATE_TEST_SUITE_P(
                       TrayOfRun{"TwoAsOne_NarrowSherdTrimmedByTheWatershed", 161001, 161019},
                       TrayOfRun{"TwoAsOne_SmallSherdBesideAWideOne", 243001, 243089},
                       TrayOfRun{"OneAsTwo_SurfaceRunningOnAcrossAShortBorder", 207001, 207049},
-                      TrayOfRun{"PieceInTheNeighbour_ApartThereJoinedToItsSherd", 247001, 247008}),
+                      TrayOfRun{"PieceInTheNeighbour_ApartThereJoinedToItsSherd", 247001, 247008},
+                      TrayOfRun{"TwoAsOne_SmallSherdOffTheClayLineBehindAStep", 159001, 159037}),
     case_name);
 
 // Strips of a sherd's fracture face that the watershed left in the neighbour's part, apart from it
@@ -661,6 +665,40 @@ INSTANTIATE_TEST_SUITE_P(BenchTrays, HangingPieceTray,
                                            PieceOfTray{179001, 179051, 14, 0.99},
                                            PieceOfTray{9001, 9098, 6, 0.99},
                                            PieceOfTray{155001, 155034, 9, 0.99}));
+
+// Pieces as large as a small sherd, with no core of their own, lying beside a sherd of another
+// clay in the top view, their colours 0.0136 and 0.0117 off that clay's line to grey (within the
+// strips' bound, kWallMaxOffClayLine): 279 mm², 60 % of sherd 12 of seed 137001's tray 137045, and
+// 283 mm², 57 % of sherd 1 of seed 143001's tray 143093, were joined to that sherd, which then
+// stood for both. Now the found sherd holding most of each stands for it.
+class LargePieceTray : public ::testing::TestWithParam<PieceOfTray> {};
+
+TEST_P(LargePieceTray, IsNoStripOfTheNeighbourOffItsClay) {
+  const PieceOfTray& piece = GetParam();
+  const SegmentedTray segmented = segmented_bench_tray(piece.first, piece.tray);
+  const auto& labels = segmented.tray.labels;
+  const seg::Part* holding_most = nullptr;
+  std::size_t most = 0;
+  for (const auto& found : segmented.result.sherds) {
+    const auto n =
+        static_cast<std::size_t>(std::count_if(found.indices.begin(), found.indices.end(),
+                                               [&](auto i) { return labels[i] == piece.sherd; }));
+    if (n > most) most = n, holding_most = &found;
+  }
+  ASSERT_NE(holding_most, nullptr);
+  std::map<int, std::size_t> by_label;
+  for (auto i : holding_most->indices) ++by_label[labels[i]];
+  const auto stands_for = std::max_element(by_label.begin(), by_label.end(), [](auto& a, auto& b) {
+                            return a.second < b.second;
+                          })->first;
+  EXPECT_EQ(stands_for, piece.sherd);
+  const auto total = std::count(labels.begin(), labels.end(), piece.sherd);
+  EXPECT_GE(static_cast<double>(most) / static_cast<double>(total), piece.min_recall);
+}
+
+INSTANTIATE_TEST_SUITE_P(BenchTrays, LargePieceTray,
+                         ::testing::Values(PieceOfTray{137001, 137045, 12, 0.55},
+                                           PieceOfTray{143001, 143093, 1, 0.55}));
 
 // A black plate seen from above every 0.5 mm, x from −50 to 30 mm, y from −40 to 40 mm, with
 // what `cell` puts at (x, y): truth label (0 plate), height and colour.
