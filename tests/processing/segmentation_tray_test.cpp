@@ -642,22 +642,31 @@ struct PieceOfTray {
   double min_recall;  // of the found sherd holding most of it
 };
 
+// The found sherd holding most points of truth sherd `sherd`, and its recall of that sherd.
+struct HoldingMost {
+  const seg::Part* found = nullptr;
+  double recall = 0.0;
+};
+HoldingMost found_holding_most(const SegmentedTray& segmented, int sherd) {
+  const auto& labels = segmented.tray.labels;
+  HoldingMost best;
+  std::size_t most = 0;
+  for (const auto& found : segmented.result.sherds) {
+    const auto n = static_cast<std::size_t>(std::count_if(
+        found.indices.begin(), found.indices.end(), [&](auto i) { return labels[i] == sherd; }));
+    if (n > most) most = n, best.found = &found;
+  }
+  const auto total = std::count(labels.begin(), labels.end(), sherd);
+  if (total > 0) best.recall = static_cast<double>(most) / static_cast<double>(total);
+  return best;
+}
+
 class HangingPieceTray : public ::testing::TestWithParam<PieceOfTray> {};
 
 TEST_P(HangingPieceTray, GoesToTheSherdItHangsFrom) {
   const PieceOfTray& piece = GetParam();
   const SegmentedTray segmented = segmented_bench_tray(piece.first, piece.tray);
-  const auto& labels = segmented.tray.labels;
-  const auto total = std::count(labels.begin(), labels.end(), piece.sherd);
-  ASSERT_GT(total, 0);
-  std::size_t most = 0;
-  for (const auto& found : segmented.result.sherds) {
-    most = std::max<std::size_t>(most,
-                                 std::count_if(found.indices.begin(), found.indices.end(),
-                                               [&](auto i) { return labels[i] == piece.sherd; }));
-  }
-  const double recall = static_cast<double>(most) / static_cast<double>(total);
-  EXPECT_GE(recall, piece.min_recall);
+  EXPECT_GE(found_holding_most(segmented, piece.sherd).recall, piece.min_recall);
 }
 
 INSTANTIATE_TEST_SUITE_P(BenchTrays, HangingPieceTray,
@@ -676,24 +685,15 @@ class LargePieceTray : public ::testing::TestWithParam<PieceOfTray> {};
 TEST_P(LargePieceTray, IsNoStripOfTheNeighbourOffItsClay) {
   const PieceOfTray& piece = GetParam();
   const SegmentedTray segmented = segmented_bench_tray(piece.first, piece.tray);
-  const auto& labels = segmented.tray.labels;
-  const seg::Part* holding_most = nullptr;
-  std::size_t most = 0;
-  for (const auto& found : segmented.result.sherds) {
-    const auto n =
-        static_cast<std::size_t>(std::count_if(found.indices.begin(), found.indices.end(),
-                                               [&](auto i) { return labels[i] == piece.sherd; }));
-    if (n > most) most = n, holding_most = &found;
-  }
-  ASSERT_NE(holding_most, nullptr);
+  const HoldingMost holding = found_holding_most(segmented, piece.sherd);
+  ASSERT_NE(holding.found, nullptr);
   std::map<int, std::size_t> by_label;
-  for (auto i : holding_most->indices) ++by_label[labels[i]];
+  for (auto i : holding.found->indices) ++by_label[segmented.tray.labels[i]];
   const auto stands_for = std::max_element(by_label.begin(), by_label.end(), [](auto& a, auto& b) {
                             return a.second < b.second;
                           })->first;
   EXPECT_EQ(stands_for, piece.sherd);
-  const auto total = std::count(labels.begin(), labels.end(), piece.sherd);
-  EXPECT_GE(static_cast<double>(most) / static_cast<double>(total), piece.min_recall);
+  EXPECT_GE(holding.recall, piece.min_recall);
 }
 
 INSTANTIATE_TEST_SUITE_P(BenchTrays, LargePieceTray,
