@@ -527,9 +527,13 @@ std::string case_name(const ::testing::TestParamInfo<TrayOfRun>& info) {
 // A whole small sherd, 410 mm² with no core of its own, beside a sherd of a clay whose line to grey
 // runs 0.0104 from its colour, behind an even step: taken for a strip of that sherd's edge before
 // (sherds 11 and 18 of seed 159001's tray 159037: found as one).
-// One sherd whose surface runs on across the border where the erosion cut it: its two parts meet
-// in 3-D along a border 0.57 × the narrower's width, with 17 step pairs beside 199 neighbour pairs,
-// hues 0.0023 apart (sherd 1 of seed 207001's tray 207049: found as two before).
+// A whole small sherd of its neighbour's clay whose surface rises to a lobe of its own (575–627
+// voxels, 400–435 mm²), touching a wider sherd at a point (a border of 0.3–0.4 mm beside a width of
+// 10–11 mm) and beside no part across a step (13–26 voxels): taken for a lobe of that sherd before
+// (sherds 4 and 2 of seed 193001's tray 193051, 5 and 2 of seed 271001's tray 271022: found as
+// one). One sherd whose surface runs on across the border where the erosion cut it: its two parts
+// meet in 3-D along a border 0.57 × the narrower's width, with 17 step pairs beside 199 neighbour
+// pairs, hues 0.0023 apart (sherd 1 of seed 207001's tray 207049: found as two before).
 class FormerlyFailingTray : public ::testing::TestWithParam<TrayOfRun> {};
 
 TEST_P(FormerlyFailingTray, EachSherdIsFoundOnceAndWhole) {
@@ -627,7 +631,9 @@ INSTANTIATE_TEST_SUITE_P(
                       TrayOfRun{"TwoAsOne_SmallSherdBesideAWideOne", 243001, 243089},
                       TrayOfRun{"OneAsTwo_SurfaceRunningOnAcrossAShortBorder", 207001, 207049},
                       TrayOfRun{"PieceInTheNeighbour_ApartThereJoinedToItsSherd", 247001, 247008},
-                      TrayOfRun{"TwoAsOne_SmallSherdOffTheClayLineBehindAStep", 159001, 159037}),
+                      TrayOfRun{"TwoAsOne_SmallSherdOffTheClayLineBehindAStep", 159001, 159037},
+                      TrayOfRun{"TwoAsOne_SmallSherdTakenForALobe", 193001, 193051},
+                      TrayOfRun{"TwoAsOne_SmallSherdTakenForALobe", 271001, 271022}),
     case_name);
 
 // Strips of a sherd's fracture face that the watershed left in the neighbour's part, apart from it
