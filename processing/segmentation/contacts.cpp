@@ -182,7 +182,7 @@ std::vector<std::pair<int, int>> parts_without_neck(
 // A whole small sherd of its neighbour's clay rises to a lobe too; like a small core's basin (see
 // kSmallSherdMaxStepBandMm2) a lobe's basin of half a sherd's area beside a wide core, neither
 // behind a step nor without a neck, stays apart. Measured with a debug build (every lobe joined on
-// 12 runs, 159001 / 177001 / … / 253001, with its truth): the 185 lobes of their own sherd had 49
+// 12 runs, 159001 / 177001 / … / 253001, with its truth): the 178 lobes of their own sherd had 49
 // or more voxels beside a step; two whole small sherds (193051, 271022) 13 and 26. Over the 80
 // runs, beside the binary without it: 193051, 271022 and 263064 made right, none wrong.
 constexpr double kLobeMinTopShare = 0.8;
@@ -557,9 +557,7 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
   }
   // A small sherd's basin beside a wide core, neither behind a step nor without a neck, stays
   // apart (see kSmallSherdMaxStepBandMm2).
-  std::vector<std::uint8_t> asked(cores, 0);
-  for (int c = 0; c < deep_cores; ++c) asked[c] = to_join[c];
-  const auto small_sherd = small_sherds_among(std::move(asked));
+  const auto small_sherd = small_sherds_among(to_join);
   for (int c = 0; c < cores; ++c) to_join[c] = to_join[c] && !small_sherd[c];
   join_touched_or_across(to_join);
   if (stages != nullptr) append_parts(cluster, tag, group, cores, stages->small_cores);
