@@ -61,9 +61,10 @@ StepBorders step_borders(const Graph& near, const std::vector<Vec3f>& centres,
 
 // Pairs (a, b) of parts (by the `borders` among them; core_rgb.size() of them) that are one
 // sherd's levels, judged by their borders and by the colours of their cores (`core_rgb`, sums) and
-// their widths (`width`, mm).
+// their widths (`width`, mm; `face_width` as a fracture face: infinite for a part that is none).
 std::vector<std::pair<int, int>> levels_of_one_sherd(StepBorders& borders,
                                                      const std::vector<double>& width,
+                                                     const std::vector<double>& face_width,
                                                      const std::vector<Vec3f>& core_rgb,
                                                      double radius) {
   const int parts = static_cast<int>(core_rgb.size());
@@ -75,7 +76,7 @@ std::vector<std::pair<int, int>> levels_of_one_sherd(StepBorders& borders,
       const bool wall = level_wall(heights) &&
                         borders.contacts[a][b] <= kLevelMaxContactShare * heights.size() &&
                         border_mm >= kLevelMinBorderShare * std::min(width[a], width[b]);
-      const bool one_clay = of_one_clay(core_rgb[a], width[a], core_rgb[b], width[b],
+      const bool one_clay = of_one_clay(core_rgb[a], face_width[a], core_rgb[b], face_width[b],
                                         kLevelMaxHueDifference, kLevelFaceMaxOffClayLine);
       if (wall && one_clay) levels.emplace_back(a, b);
     }
@@ -128,15 +129,15 @@ std::vector<std::vector<std::size_t>> border_bands(const Graph& near,
   return band;
 }
 
-// Pairs (a, b) of parts (by `tag`, widths `width` in mm) with no neck between them, among the
-// voxels `among` of the parts marked in `judged`; voxels `leaked` to another basin (leaked_to, when
-// given) are no part of a border. A pair whose surface runs on across the border (by its step
-// `borders`, see kSmoothMaxStepShare) needs a shorter one.
+// Pairs (a, b) of parts (by `tag`, widths `width` and `face_width` as for levels_of_one_sherd) with
+// no neck between them, among the voxels `among` of the parts marked in `judged`; voxels `leaked`
+// to another basin (leaked_to, when given) are no part of a border. A pair whose surface runs on
+// across the border (by its step `borders`, see kSmoothMaxStepShare) needs a shorter one.
 std::vector<std::pair<int, int>> parts_without_neck(
     const Graph& near, const std::vector<std::uint32_t>& among, const std::vector<int>& tag,
-    const std::vector<double>& width, const std::vector<std::uint8_t>& judged,
-    const std::vector<int>* leaked, const std::vector<Vec3f>& core_rgb, const StepBorders& borders,
-    double radius) {
+    const std::vector<double>& width, const std::vector<double>& face_width,
+    const std::vector<std::uint8_t>& judged, const std::vector<int>* leaked,
+    const std::vector<Vec3f>& core_rgb, const StepBorders& borders, double radius) {
   const int parts = static_cast<int>(core_rgb.size());
   const auto band = border_bands(near, among, tag, parts, leaked);
   std::vector<std::pair<int, int>> pairs;
@@ -145,7 +146,7 @@ std::vector<std::pair<int, int>> parts_without_neck(
       if (!judged[a] || !judged[b] || band[a][b] == 0) continue;
       const double border_mm = border_length_mm(band[a][b], band[b][a], radius);
       const double narrower_mm = std::min(width[a], width[b]);
-      const bool one_clay = of_one_clay(core_rgb[a], width[a], core_rgb[b], width[b],
+      const bool one_clay = of_one_clay(core_rgb[a], face_width[a], core_rgb[b], face_width[b],
                                         kNoNeckMaxHueDifference, kFaceMaxOffClayLine);
       const bool smooth =
           borders.heights[a][b].size() <= kSmoothMaxStepShare * borders.contacts[a][b] &&
@@ -561,27 +562,38 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
   for (int c = 0; c < cores; ++c) to_join[c] = to_join[c] && !small_sherd[c];
   join_touched_or_across(to_join);
   if (stages != nullptr) append_parts(cluster, tag, group, cores, stages->small_cores);
-  // Levels are looked for among the parts of sherd-sized cores only (the others joined above).
-  if (!voxel_rgb.empty() && std::count(sherd_sized.begin(), sherd_sized.end(), 1) >= 2) {
+  // Levels are looked for among the parts that stand as sherds: those of sherd-sized cores and the
+  // small cores' basins kept apart above, which are no fracture face (see split_at_contacts in
+  // contacts.h).
+  std::vector<std::uint8_t> judged_part = sherd_sized, kept_small(cores, 0);
+  for (int c = 0; c < deep_cores; ++c) {
+    kept_small[c] = !sherd_sized[c] && basin_size[c] > 0 && !to_join[c];
+    judged_part[c] |= kept_small[c];
+  }
+  if (!voxel_rgb.empty() && std::count(judged_part.begin(), judged_part.end(), 1) >= 2) {
     std::vector<Vec3f> core_rgb(cores, Vec3f::Zero());
     for (auto [v, c] : seeds) core_rgb[c] += voxel_rgb[v];
     std::vector<std::uint32_t> judged;
     std::vector<double> width(cores, 0.0);  // twice the deepest voxel's distance from the boundary
     for (auto v : cluster) {
-      if (!sherd_sized[tag[v]]) continue;
+      if (!judged_part[tag[v]]) continue;
       judged.push_back(v);
       width[tag[v]] = std::max(width[tag[v]], 2.0 * distance[v]);
     }
+    std::vector<double> face_width = width;
+    for (int c = 0; c < cores; ++c)
+      if (kept_small[c]) face_width[c] = std::numeric_limits<double>::infinity();
     auto borders = step_borders(near, centres, judged, tag, cores, radius);
-    for (auto [a, b] : levels_of_one_sherd(borders, width, core_rgb, radius)) group.join(a, b);
+    for (auto [a, b] : levels_of_one_sherd(borders, width, face_width, core_rgb, radius))
+      group.join(a, b);
     // Leaving out leaked voxels only shortens borders, so they are looked for (two searches over
     // the cluster) only where a pair would join without them.
-    auto no_neck = parts_without_neck(near, judged, tag, width, sherd_sized, nullptr, core_rgb,
-                                      borders, radius);
+    auto no_neck = parts_without_neck(near, judged, tag, width, face_width, judged_part, nullptr,
+                                      core_rgb, borders, radius);
     if (!no_neck.empty()) {
-      const auto leaked = leaked_to(near, centres, judged, seeds, tag, sherd_sized, erosion);
-      no_neck = parts_without_neck(near, judged, tag, width, sherd_sized, &leaked, core_rgb,
-                                   borders, radius);
+      const auto leaked = leaked_to(near, centres, judged, seeds, tag, judged_part, erosion);
+      no_neck = parts_without_neck(near, judged, tag, width, face_width, judged_part, &leaked,
+                                   core_rgb, borders, radius);
     }
     for (auto [a, b] : no_neck) group.join(a, b);
   }
