@@ -565,11 +565,8 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
   // Levels are looked for among the parts that stand as sherds: those of sherd-sized cores and the
   // small cores' basins kept apart above, which are no fracture face (see split_at_contacts in
   // contacts.h).
-  std::vector<std::uint8_t> judged_part = sherd_sized, kept_small(cores, 0);
-  for (int c = 0; c < deep_cores; ++c) {
-    kept_small[c] = !sherd_sized[c] && basin_size[c] > 0 && !to_join[c];
-    judged_part[c] |= kept_small[c];
-  }
+  std::vector<std::uint8_t> judged_part = sherd_sized;
+  for (int c = 0; c < deep_cores; ++c) judged_part[c] |= basin_size[c] > 0 && !to_join[c];
   if (!voxel_rgb.empty() && std::count(judged_part.begin(), judged_part.end(), 1) >= 2) {
     std::vector<Vec3f> core_rgb(cores, Vec3f::Zero());
     for (auto [v, c] : seeds) core_rgb[c] += voxel_rgb[v];
@@ -582,7 +579,7 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
     }
     std::vector<double> face_width = width;
     for (int c = 0; c < cores; ++c)
-      if (kept_small[c]) face_width[c] = std::numeric_limits<double>::infinity();
+      if (!sherd_sized[c]) face_width[c] = std::numeric_limits<double>::infinity();
     auto borders = step_borders(near, centres, judged, tag, cores, radius);
     for (auto [a, b] : levels_of_one_sherd(borders, width, face_width, core_rgb, radius))
       group.join(a, b);

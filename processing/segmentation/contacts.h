@@ -137,7 +137,8 @@ inline constexpr double kSmoothMinBorderShare = 0.5;
 // width; 243029: an even step; 269046, whose third part stays apart), hues 0.0015–0.0029 apart.
 // Judged with the face test too, two whole narrow sherds joined a wider sherd of another hue (0.11,
 // 0.22) whose line to grey they lie on (9034, 171079). Beside the binary before, over the 80 runs:
-// 187007 and 243029 made right, none wrong.
+// 187007 and 243029 made right, none wrong; on 16 runs never run before (737001 / 739001 / … /
+// 767001) 755098, 757033 and 763038 made right, none wrong.
 struct CoreSizes {
   std::size_t min_core_voxels;       // smaller cores are ignored
   std::size_t min_own_core_voxels;   // smaller cores' parts join a neighbour …
