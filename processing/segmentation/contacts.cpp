@@ -1,6 +1,7 @@
 #include "processing/segmentation/contacts.h"
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
 #include <map>
 #include <numeric>
@@ -27,20 +28,23 @@ void for_each_step_pair(TopView& top, const std::vector<Vec3f>& centres,
 
 // The borders between the parts (by `tag`; `parts` of them) among the voxels `among`, by pair
 // (a, b) with a < b: how many 3-D neighbour pairs join them, and the heights of their step pairs —
-// neighbours in the top view (flattened onto the plate) that are not neighbours in 3-D. band[a][b]
-// counts the voxels of part a with a step pair to part b, for any a and b.
+// neighbours in the top view (flattened onto the plate) that are not neighbours in 3-D — with how
+// many of those rise from a to b (b's voxel the higher). band[a][b] counts the voxels of part a
+// with a step pair to part b, for any a and b.
 struct StepBorders {
   std::vector<std::vector<std::size_t>> contacts;
   std::vector<std::vector<std::vector<float>>> heights;
+  std::vector<std::vector<std::size_t>> rises;
   std::vector<std::vector<std::size_t>> band;
 };
 StepBorders step_borders(const Graph& near, const std::vector<Vec3f>& centres,
                          const std::vector<std::uint32_t>& among, const std::vector<int>& tag,
                          int parts, double radius) {
+  const std::vector<std::vector<std::size_t>> zeros(parts, std::vector<std::size_t>(parts, 0));
   StepBorders borders{
-      std::vector<std::vector<std::size_t>>(parts, std::vector<std::size_t>(parts, 0)),
+      zeros,
       std::vector<std::vector<std::vector<float>>>(parts, std::vector<std::vector<float>>(parts)),
-      std::vector<std::vector<std::size_t>>(parts, std::vector<std::size_t>(parts, 0))};
+      zeros, zeros};
   for (auto v : among) {
     for (auto n : near[v]) borders.contacts[tag[v]][tag[n]] += tag[n] > tag[v];
   }
@@ -51,8 +55,11 @@ StepBorders step_borders(const Graph& near, const std::vector<Vec3f>& centres,
     beside.clear();
     for_each_step_pair(top, centres, tag, v, radius, found, [&](std::uint32_t n) {
       add_once(beside, tag[n]);
-      if (tag[n] > tag[v])
-        borders.heights[tag[v]][tag[n]].push_back(std::abs(centres[n].z() - centres[v].z()));
+      if (tag[n] > tag[v]) {
+        const float rise = centres[n].z() - centres[v].z();
+        borders.heights[tag[v]][tag[n]].push_back(std::abs(rise));
+        borders.rises[tag[v]][tag[n]] += rise > 0.0f;
+      }
     });
     for (int b : beside) ++borders.band[tag[v]][b];
   }
@@ -61,7 +68,9 @@ StepBorders step_borders(const Graph& near, const std::vector<Vec3f>& centres,
 
 // Pairs (a, b) of parts (by the `borders` among them; core_rgb.size() of them) that are one
 // sherd's levels, judged by their borders and by the colours of their cores (`core_rgb`, sums) and
-// their widths (`width`, mm; `face_width` as a fracture face: infinite for a part that is none).
+// their widths (`width`, mm; `face_width` as a fracture face: infinite for a part that is none, a
+// small core's basin kept apart, judged only as the lower level beside a wider part and the
+// upper beside a narrower one: see split_at_contacts in contacts.h).
 std::vector<std::pair<int, int>> levels_of_one_sherd(StepBorders& borders,
                                                      const std::vector<double>& width,
                                                      const std::vector<double>& face_width,
@@ -78,7 +87,10 @@ std::vector<std::pair<int, int>> levels_of_one_sherd(StepBorders& borders,
                         border_mm >= kLevelMinBorderShare * std::min(width[a], width[b]);
       const bool one_clay = of_one_clay(core_rgb[a], face_width[a], core_rgb[b], face_width[b],
                                         kLevelMaxHueDifference, kLevelFaceMaxOffClayLine);
-      if (wall && one_clay) levels.emplace_back(a, b);
+      const bool kept_basin = std::isinf(face_width[a]) || std::isinf(face_width[b]);
+      const bool b_upper = 2 * borders.rises[a][b] > heights.size();
+      const bool wider_upper = b_upper == (width[b] > width[a]);
+      if (wall && one_clay && (wider_upper || !kept_basin)) levels.emplace_back(a, b);
     }
   }
   return levels;

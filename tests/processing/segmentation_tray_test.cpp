@@ -539,6 +539,9 @@ std::string case_name(const ::testing::TestParamInfo<TrayOfRun>& info) {
 // of seed 187001) it meets the rest in 3-D along a border longer than its width, in tray 243029
 // (sherd 2 of seed 243001) behind an even step (q10 2.6, q90 3.4 mm; 12 3-D pairs beside 546 step
 // pairs). Found as two before: such basins were not judged for levels and necks.
+// A narrow sherd (a basin 12.3 mm wide) leaning on a wider one of a hue 0.013 apart, 6.4 mm above
+// it behind an even step (sherds 17 and 2 of seed 787001's tray 787094): joined to it as its far
+// side when such basins were first judged for levels; a sherd's far side is its lower level.
 class FormerlyFailingTray : public ::testing::TestWithParam<TrayOfRun> {};
 
 TEST_P(FormerlyFailingTray, EachSherdIsFoundOnceAndWhole) {
@@ -640,7 +643,8 @@ INSTANTIATE_TEST_SUITE_P(
                       TrayOfRun{"TwoAsOne_SmallSherdTakenForALobe", 193001, 193051},
                       TrayOfRun{"TwoAsOne_SmallSherdTakenForALobe", 271001, 271022},
                       TrayOfRun{"OneAsTwo_FarSideKeptAsANarrowSherd", 187001, 187007},
-                      TrayOfRun{"OneAsTwo_FarSideKeptAsANarrowSherd", 243001, 243029}),
+                      TrayOfRun{"OneAsTwo_FarSideKeptAsANarrowSherd", 243001, 243029},
+                      TrayOfRun{"TwoAsOne_NarrowSherdLeaningAsAFarSide", 787001, 787094}),
     case_name);
 
 // Whole narrow sherds kept apart beside a wider sherd of another hue (0.11 and 0.22 apart) whose
