@@ -36,8 +36,9 @@ std::vector<std::vector<std::uint32_t>> detached_pieces_to_their_sherd(
     double leaf);
 
 // `parts` with the regions that are another part's fracture face (its clay mixed with grey, by hue,
-// by where they lie in the top view and by the side their slope faces) moved to that part. The
-// rules and their measurements: at kRegionMaxPairsPerVoxel and kSteepSlope in clay_split.cpp.
+// by where they lie in the top view and by the side their slope faces) moved to that part, also
+// where two sherds' faces meet as one region. The rules and their measurements: at
+// kRegionMaxPairsPerVoxel, kSteepSlope and pieces_hanging_from_others in clay_split.cpp.
 std::vector<std::vector<std::uint32_t>> faces_to_their_clay(
     std::vector<std::vector<std::uint32_t>> parts, const Graph& near,
     const std::vector<Vec3f>& centres, const std::vector<Vec3f>& voxel_rgb, double radius,
