@@ -204,26 +204,27 @@ inline constexpr double kWideCoreMm2 = 80.0;
 // judged together with the small deep cores by their rule) made 6 trays right and 16 wrong on
 // the first 13 runs, splitting sherds.
 inline constexpr double kShallowCoreShare = 0.6;
-// A band of a sherd behind a step inside it (a rim band, a lip, the far side of a carination),
-// 6–10 mm wide in the top view (3.1–4.9 mm deep at the most), keeps no core erosion deep nor
+// A band of a sherd behind a step inside it (a rim band, a lip, the far side of a carination), 6–10
+// mm wide in the top view (3.1–4.9 mm deep at the most), keeps no core erosion deep nor
 // kShallowCoreShare × erosion deep, and went to whichever basin the watershed reached it from
 // first: where the band also touches another sherd in 3-D (its end against that sherd's corner),
 // often that sherd's, though it touches its own far longer or lies along it across the step. So a
 // region kBandCoreShare × erosion deep that holds no other core and covers min_own_core_voxels is a
 // band core, and its basin joins at once (before the shallow cores are judged by the basins they
 // then have) the basin it touches most in 3-D, or the one across the step that its colour shows, as
-// a small core's does (kSmallCoreAcrossStep). Measured with a debug build on the 46 sherds left
-// split by the watershed over 80 runs of 100 trays (1 / 1001 / … / 15001, 133001 / 135001 / … /
-// 275001): 23 had a piece without a core in a neighbour's part: 14 touching the neighbour in 3-D
-// more than the rest of their sherd (6–169 neighbour pairs against 3–32), 9 touching their own
-// sherd more (32–1132 against 12–102). Over those 80 runs, beside the binary without band cores: 8
-// trays made right (13065, 147011, 271094 by colour across the step; 233097, 245013, 267004, where
-// the piece touched its own sherd by 490–744 pairs and the neighbour by 60–125; 151075, 189050), 1
-// wrong (205008: a band 0.0090 off its own sherd's clay line and 0.0014 off its neighbour's went
-// across to the neighbour); on eight runs never run before (369001 / 371001 / … / 383001), 1 made
-// right (373073), none wrong. A first draft judged the band cores with the small ones, after the
-// shallow ones, and made 5 trays wrong: the bands' basins had taken area from shallow cores'
-// basins, which fell under min_own_basin_voxels and joined a neighbour (11010, 199056).
+// a small core's does (kSmallCoreAcrossStep, kAlongStepMinPairs in contacts.cpp). Measured with a
+// debug build on the 46 sherds left split by the watershed over 80 runs of 100 trays (1 / 1001 / …
+// / 15001, 133001 / 135001 / … / 275001): 23 had a piece without a core in a neighbour's part: 14
+// touching the neighbour in 3-D more than the rest of their sherd (6–169 neighbour pairs against
+// 3–32), 9 touching their own sherd more (32–1132 against 12–102). Over those 80 runs, beside the
+// binary without band cores: 8 trays made right (13065, 147011, 271094 by colour across the step;
+// 233097, 245013, 267004, where the piece touched its own sherd by 490–744 pairs and the neighbour
+// by 60–125; 151075, 189050), 1 wrong (205008: a band 0.0090 off its own sherd's clay line and
+// 0.0014 off its neighbour's went across to the neighbour); on eight runs never run before (369001
+// / 371001 / … / 383001), 1 made right (373073), none wrong. A first draft judged the band cores
+// with the small ones, after the shallow ones, and made 5 trays wrong: the bands' basins had taken
+// area from shallow cores' basins, which fell under min_own_basin_voxels and joined a neighbour
+// (11010, 199056).
 inline constexpr double kBandCoreShare = 0.4;
 
 // The parts of the clusters after the first stages of split_at_contacts, for the benchmark's
@@ -284,7 +285,9 @@ inline constexpr double kWallMaxContactShare = 0.05;
 // mm²) lay 0.0000–0.0040 off the clay line, one of 217 mm² 0.0101 (161071); five of the six wrong
 // joins were pieces of 279–410 mm², 0.0098–0.0136 off (137045, 143093, 159037, 195088, 201032: a
 // whole small sherd, or 57–60 % of a sherd the watershed cut), the sixth a 45 mm² crumb (201025).
-// A seventh seen since (243017: 344 mm² behind a level's wall, 0.0035 off) stays joined.
+// A seventh seen since (243017: 344 mm² behind a level's wall, 0.0035 off) stayed joined until
+// the far side of that step joined its own sherd across the step first (kAlongStepMinPairs,
+// contacts.cpp).
 inline constexpr double kWallLargePartMm2 = 250.0;
 
 // `parts` (voxel lists) with the narrow pieces joined to their sherds; `depth` is each voxel's
