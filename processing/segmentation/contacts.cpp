@@ -343,13 +343,12 @@ struct StepPairs {
   std::vector<std::size_t> most_across_pairs;  // by basin: how many pairs with most_across
   std::vector<std::uint8_t> beside_step;       // by voxel: whether it is in one
 };
-StepPairs step_pairs(const std::vector<Vec3f>& centres, const std::vector<std::uint32_t>& cluster,
-                     const std::vector<int>& tag, const std::vector<std::uint8_t>& asked,
-                     double radius) {
+StepPairs step_pairs(TopView& top, const std::vector<Vec3f>& centres,
+                     const std::vector<std::uint32_t>& cluster, const std::vector<int>& tag,
+                     const std::vector<std::uint8_t>& asked, double radius) {
   const int basins = static_cast<int>(asked.size());
   StepPairs steps{std::vector<int>(basins, -1), std::vector<std::size_t>(basins, 0),
                   std::vector<std::uint8_t>(centres.size(), 0)};
-  TopView top(centres, cluster);
   std::vector<std::vector<std::size_t>> pairs(basins);
   std::vector<int> found;
   for (auto v : cluster) {
@@ -515,6 +514,11 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
       for (auto n : near[v]) border[tag[v]][tag[n]] += tag[n] != tag[v];
     }
   };
+  std::optional<TopView> cluster_top;  // built once, when the first step pairs are asked for
+  auto top_view = [&]() -> TopView& {
+    if (!cluster_top) cluster_top.emplace(centres, cluster);
+    return *cluster_top;
+  };
   auto longest_border = [&](int c) {
     return static_cast<int>(std::max_element(border[c].begin(), border[c].end()) -
                             border[c].begin());
@@ -530,7 +534,8 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
       any |= asked[c] != 0;
     }
     if (!any) return asked;
-    const auto beside_step = step_pairs(centres, cluster, tag, asked, radius).beside_step;
+    const auto beside_step =
+        step_pairs(top_view(), centres, cluster, tag, asked, radius).beside_step;
     const auto band = border_bands(near, cluster, tag, cores, nullptr);
     std::vector<std::size_t> step_band(cores, 0);
     std::vector<double> width(cores, 0.0);
@@ -557,9 +562,8 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
     StepPairs steps;
     if (!voxel_rgb.empty() && std::find(joining.begin(), joining.end(), 1) != joining.end()) {
       for (auto v : cluster) basin_rgb[tag[v]] += voxel_rgb[v];
-      steps = step_pairs(centres, cluster, tag, joining, radius);
+      steps = step_pairs(top_view(), centres, cluster, tag, joining, radius);
     }
-    std::optional<TopView> top;
     for (int c = 0; c < cores; ++c) {
       if (!joining[c]) continue;
       const int longest = longest_border(c);
@@ -577,9 +581,8 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
           off_across < kSmallCoreAcrossStep && off_across <= off_touched;
       const int to = across == longest || clay_across_step || along_step ? across : longest;
       if (to == across && steps.most_across_pairs[c] >= kAlongStepMinPairs * border[c][longest]) {
-        if (!top) top.emplace(centres, cluster);
         const auto part =
-            part_across_step(near, *top, centres, cluster, tag, seeds, c, across, radius);
+            part_across_step(near, top_view(), centres, cluster, tag, seeds, c, across, radius);
         if (part.border < kLeakedLevelMaxBorderShare * part.voxels.size() &&
             part.voxels.size() < kLeakedLevelMaxShare * part.basin_size) {
           for (auto v : part.voxels) tag[v] = c;  // a level of c's sherd: c and it stay apart
