@@ -143,6 +143,21 @@ std::vector<std::vector<std::size_t>> border_bands(const Graph& near,
   return band;
 }
 
+// A fracture face lies along its sherd's surface over its whole length: beside it in 3-D (the
+// crease) or across a step (the face above or below the surface in the top view). A whole sherd
+// whose colour happens to lie near another's clay line meets that one along a contact, short for
+// its size. So a part stands as the other's face, across a border without a neck, only where its
+// length — its area over its width — is at most kFaceMaxLengthPerBorder × the longer of its two
+// borders with the other (in 3-D, across the step). Measured with a debug build (the pairs joined
+// as a face and its surface over 80 runs of 100 trays — 1 / 1001 / 5001 / … / 15001, 133001 /
+// 135001 / … / 275001 — and held-out tray 925082, with their truth): 30 faces of their own sherd
+// were 0.33–1.90 × as long as that border; whole sherds taken for a face 2.55–10.2 × (273095,
+// 145031, 151027, 11057, 925082), five more 0.95–1.85 × (195011, 257008, 205008, 231041, 13034:
+// they lie along the other across a step). Over the 80 runs, beside the binary without it: 5
+// trays made right (those four and 227023), none wrong; on 16 runs never run before (929001 /
+// 931001 / … / 959001) 2 made right (939071, 945071), none wrong.
+constexpr double kFaceMaxLengthPerBorder = 2.5;
+
 // Pairs (a, b) of parts (by `tag`, widths `width` and `face_width` as for levels_of_one_sherd) with
 // no neck between them, among the voxels `among` of the parts marked in `judged`; voxels `leaked`
 // to another basin (leaked_to, when given) are no part of a border. A pair whose surface runs on
@@ -154,13 +169,23 @@ std::vector<std::pair<int, int>> parts_without_neck(
     const std::vector<Vec3f>& core_rgb, const StepBorders& borders, double radius) {
   const int parts = static_cast<int>(core_rgb.size());
   const auto band = border_bands(near, among, tag, parts, leaked);
+  const double leaf = radius / kVoxelsPerTolerance;
+  std::vector<double> area_mm2(parts, 0.0);
+  for (auto v : among) area_mm2[tag[v]] += leaf * leaf;
   std::vector<std::pair<int, int>> pairs;
   for (int a = 0; a < parts; ++a) {
     for (int b = a + 1; b < parts; ++b) {
       if (!judged[a] || !judged[b] || band[a][b] == 0) continue;
       const double border_mm = border_length_mm(band[a][b], band[b][a], radius);
       const double narrower_mm = std::min(width[a], width[b]);
-      const bool one_clay = of_one_clay(core_rgb[a], face_width[a], core_rgb[b], face_width[b],
+      const double along_mm =
+          std::max(border_mm, border_length_mm(borders.band[a][b], borders.band[b][a], radius));
+      auto as_face = [&](int p) {  // p's width as the other's face (see kFaceMaxLengthPerBorder)
+        return area_mm2[p] <= kFaceMaxLengthPerBorder * along_mm * face_width[p]
+                   ? face_width[p]
+                   : std::numeric_limits<double>::infinity();
+      };
+      const bool one_clay = of_one_clay(core_rgb[a], as_face(a), core_rgb[b], as_face(b),
                                         kNoNeckMaxHueDifference, kFaceMaxOffClayLine);
       const bool smooth =
           borders.heights[a][b].size() <= kSmoothMaxStepShare * borders.contacts[a][b] &&

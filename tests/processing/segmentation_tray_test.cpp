@@ -559,6 +559,10 @@ std::string case_name(const ::testing::TestParamInfo<TrayOfRun>& info) {
 // (505, 229 and 540 voxels with 123, 149 and 84 3-D pairs to the rest of that basin): sherds 3 and
 // 7 of seed 159001's tray 159065, 3 and 1 of 177001's 177017, 6 and 3 of 197001's 197057, found as
 // one before.
+// A whole sherd whose colour lies near another's clay line (greyer, within 0.008 of it) touching
+// that one briefly, taken for its fracture face across a border without a neck: sherds 13 and 4
+// of seed 145001's tray 145031, 3 and 6 of 11001's 11057, 8 and 10 of 151001's 151027, 2 and 1 of
+// 925001's 925082 (3.0–10 × as long, area over width, as its longer border with the other).
 class FormerlyFailingTray : public ::testing::TestWithParam<TrayOfRun> {};
 
 TEST_P(FormerlyFailingTray, EachSherdIsFoundOnceAndWhole) {
@@ -669,7 +673,11 @@ INSTANTIATE_TEST_SUITE_P(
                       TrayOfRun{"TwoAsOne_FarSideTouchingAnotherAtItsEnd", 243001, 243017},
                       TrayOfRun{"TwoAsOne_LevelLeaningOnAnotherWithItsRaisedEnd", 159001, 159065},
                       TrayOfRun{"TwoAsOne_LevelLeaningOnAnotherWithItsRaisedEnd", 177001, 177017},
-                      TrayOfRun{"TwoAsOne_LevelLeaningOnAnotherWithItsRaisedEnd", 197001, 197057}),
+                      TrayOfRun{"TwoAsOne_LevelLeaningOnAnotherWithItsRaisedEnd", 197001, 197057},
+                      TrayOfRun{"TwoAsOne_WholeSherdTakenForAFace", 145001, 145031},
+                      TrayOfRun{"TwoAsOne_WholeSherdTakenForAFace", 11001, 11057},
+                      TrayOfRun{"TwoAsOne_WholeSherdTakenForAFace", 151001, 151027},
+                      TrayOfRun{"TwoAsOne_WholeSherdTakenForAFace", 925001, 925082}),
     case_name);
 
 // Whole narrow sherds kept apart beside a wider sherd of another hue (0.11 and 0.22 apart) whose
