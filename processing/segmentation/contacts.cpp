@@ -1,5 +1,6 @@
 #include "processing/segmentation/contacts.h"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -32,14 +33,14 @@ void for_each_step_pair(TopView& top, const std::vector<Vec3f>& centres,
 // (a, b) with a < b: how many 3-D neighbour pairs join them, and the heights of their step pairs —
 // neighbours in the top view (flattened onto the plate) that are not neighbours in 3-D — with how
 // many of those rise from a to b (b's voxel the higher). band[a][b] counts the voxels of part a
-// with a step pair to part b, for any a and b.
+// with a step pair to part b, for any a and b. `top` is the top view of `among`.
 struct StepBorders {
   std::vector<std::vector<std::size_t>> contacts;
   std::vector<std::vector<std::vector<float>>> heights;
   std::vector<std::vector<std::size_t>> rises;
   std::vector<std::vector<std::size_t>> band;
 };
-StepBorders step_borders(const Graph& near, const std::vector<Vec3f>& centres,
+StepBorders step_borders(const Graph& near, TopView& top, const std::vector<Vec3f>& centres,
                          const std::vector<std::uint32_t>& among, const std::vector<int>& tag,
                          int parts, double radius) {
   const std::vector<std::vector<std::size_t>> zeros(parts, std::vector<std::size_t>(parts, 0));
@@ -50,7 +51,6 @@ StepBorders step_borders(const Graph& near, const std::vector<Vec3f>& centres,
   for (auto v : among) {
     for (auto n : near[v]) borders.contacts[tag[v]][tag[n]] += tag[n] > tag[v];
   }
-  TopView top(centres, among);
   std::vector<int> found;
   std::vector<int> beside;
   for (auto v : among) {
@@ -68,31 +68,88 @@ StepBorders step_borders(const Graph& near, const std::vector<Vec3f>& centres,
   return borders;
 }
 
+// Whether the lower of two levels a and b (parts by `tag` among `among`, whose top view is `top`;
+// b the upper when `b_upper`) falls away from their border (see kFallingLevelMaxSlope): the plane
+// through its voxels within kFallingLevelNearMm of the border (in the top view) descends at
+// kFallingLevelMaxSlope or steeper along the direction from the upper part's side of the border to
+// the lower's (the centres of the step pairs' voxels on either side, in the top view).
+bool lower_level_falls_away(TopView& top, const std::vector<Vec3f>& centres,
+                            const std::vector<std::uint32_t>& among, const std::vector<int>& tag,
+                            int a, int b, bool b_upper, double radius) {
+  const int lower = b_upper ? a : b;
+  constexpr std::uint8_t kInBand = 1, kNearBand = 2;
+  std::vector<std::uint8_t> mark(centres.size(), 0);
+  std::vector<std::uint32_t> band;  // voxels of either part in a step pair with the other
+  std::vector<int> found;
+  auto add_to_band = [&](std::uint32_t v) {
+    if (!(mark[v] & kInBand)) mark[v] |= kInBand, band.push_back(v);
+  };
+  for (auto v : among) {
+    if (tag[v] != a) continue;
+    for_each_step_pair(top, centres, tag, v, radius, found, [&](std::uint32_t n) {
+      if (tag[n] == b) add_to_band(v), add_to_band(n);
+    });
+  }
+  Eigen::Vector2d side_sum[2] = {Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero()};
+  std::size_t side_count[2] = {0, 0};    // [0] the upper part's side, [1] the lower's
+  std::vector<std::uint32_t> near_band;  // the lower part's voxels near the border
+  for (auto v : band) {
+    const int side = tag[v] == lower;
+    side_sum[side] += centres[v].head<2>().cast<double>();
+    ++side_count[side];
+    top.search(centres[v], kFallingLevelNearMm, found);
+    for (auto f : found) {
+      const auto n = top.voxel_at[f];
+      if (tag[n] == lower && !(mark[n] & kNearBand)) mark[n] |= kNearBand, near_band.push_back(n);
+    }
+  }
+  if (side_count[0] == 0 || side_count[1] == 0 || near_band.size() < 3) return false;
+  const Eigen::Vector2d across =
+      (side_sum[1] / side_count[1] - side_sum[0] / side_count[0]).normalized();
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (auto v : near_band) mean += centres[v].cast<double>();
+  mean /= static_cast<double>(near_band.size());
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  for (auto v : near_band) {
+    const Eigen::Vector3d d = centres[v].cast<double>() - mean;
+    scatter += d * d.transpose();
+  }
+  const Eigen::Vector3d normal =
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(scatter).eigenvectors().col(0);
+  // A plane about as steep as a wall (normal.z near 0) has no meaningful slope: it does not fall.
+  if (std::abs(normal.z()) < kFallingLevelMinNormalZ) return false;
+  return -normal.head<2>().dot(across) / normal.z() <= kFallingLevelMaxSlope;
+}
+
 // Pairs (a, b) of parts (by the `borders` among them; core_rgb.size() of them) that are one
 // sherd's levels, judged by their borders and by the colours of their cores (`core_rgb`, sums) and
 // their widths (`width`, mm; `face_width` as a fracture face: infinite for a part that is none, a
 // small core's basin kept apart, judged only as the lower level beside a wider part and the
 // upper beside a narrower one: see split_at_contacts in contacts.h).
-std::vector<std::pair<int, int>> levels_of_one_sherd(StepBorders& borders,
-                                                     const std::vector<double>& width,
-                                                     const std::vector<double>& face_width,
-                                                     const std::vector<Vec3f>& core_rgb,
-                                                     double radius) {
+// The parts' voxels are `among` (by `tag`), whose top view is `top`.
+std::vector<std::pair<int, int>> levels_of_one_sherd(
+    StepBorders& borders, TopView& top, const std::vector<Vec3f>& centres,
+    const std::vector<std::uint32_t>& among, const std::vector<int>& tag,
+    const std::vector<double>& width, const std::vector<double>& face_width,
+    const std::vector<Vec3f>& core_rgb, double radius) {
   const int parts = static_cast<int>(core_rgb.size());
   std::vector<std::pair<int, int>> levels;
   for (int a = 0; a < parts; ++a) {
     for (int b = a + 1; b < parts; ++b) {
       auto& heights = borders.heights[a][b];
       const double border_mm = border_length_mm(borders.band[a][b], borders.band[b][a], radius);
-      const bool wall = level_wall(heights) &&
-                        borders.contacts[a][b] <= kLevelMaxContactShare * heights.size() &&
-                        border_mm >= kLevelMinBorderShare * std::min(width[a], width[b]);
+      const bool apart = borders.contacts[a][b] <= kLevelMaxContactShare * heights.size() &&
+                         border_mm >= kLevelMinBorderShare * std::min(width[a], width[b]);
       const bool one_clay = of_one_clay(core_rgb[a], face_width[a], core_rgb[b], face_width[b],
                                         kLevelMaxHueDifference, kLevelFaceMaxOffClayLine);
       const bool kept_basin = std::isinf(face_width[a]) || std::isinf(face_width[b]);
       const bool b_upper = 2 * borders.rises[a][b] > heights.size();
       const bool wider_upper = b_upper == (width[b] > width[a]);
-      if (wall && one_clay && (wider_upper || !kept_basin)) levels.emplace_back(a, b);
+      if (!apart || !one_clay || (kept_basin && !wider_upper)) continue;
+      if (level_wall(heights) ||
+          (level_wall(heights, kFallingLevelStepMaxMm, kFallingLevelStepMaxSpread) &&
+           lower_level_falls_away(top, centres, among, tag, a, b, b_upper, radius)))
+        levels.emplace_back(a, b);
     }
   }
   return levels;
@@ -466,10 +523,10 @@ void append_parts(const std::vector<std::uint32_t>& cluster, const std::vector<i
 
 }  // namespace
 
-bool level_wall(std::vector<float>& heights) {
+bool level_wall(std::vector<float>& heights, double max_mm, double max_spread) {
   if (heights.size() < kLevelMinStepPairs) return false;
   const double q10 = quantile_of(heights, 0.1), q90 = quantile_of(heights, 0.9);
-  return q10 >= kLevelStepMinMm && q90 <= kLevelStepMaxMm && q90 <= kLevelStepMaxSpread * q10;
+  return q10 >= kLevelStepMinMm && q90 <= max_mm && q90 <= max_spread * q10;
 }
 
 std::vector<std::vector<std::uint32_t>> split_at_contacts(
@@ -737,8 +794,10 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
     std::vector<double> face_width = width;
     for (int c = 0; c < cores; ++c)
       if (!sherd_sized[c]) face_width[c] = std::numeric_limits<double>::infinity();
-    auto borders = step_borders(near, centres, judged, tag, cores, radius);
-    for (auto [a, b] : levels_of_one_sherd(borders, width, face_width, core_rgb, radius))
+    TopView judged_top(centres, judged);
+    auto borders = step_borders(near, judged_top, centres, judged, tag, cores, radius);
+    for (auto [a, b] : levels_of_one_sherd(borders, judged_top, centres, judged, tag, width,
+                                           face_width, core_rgb, radius))
       group.join(a, b);
     // Leaving out leaked voxels only shortens borders, so they are looked for (two searches over
     // the cluster) only where a pair would join without them.
