@@ -68,18 +68,18 @@ StepBorders step_borders(const Graph& near, TopView& top, const std::vector<Vec3
   return borders;
 }
 
-// Whether the lower of two levels a and b (parts by `tag` among `among`, whose top view is `top`;
-// b the upper when `b_upper`) falls away from their border (see kFallingLevelMaxSlope): the plane
-// through its voxels within kFallingLevelNearMm of the border (in the top view) descends at
-// kFallingLevelMaxSlope or steeper along the direction from the upper part's side of the border to
-// the lower's (the centres of the step pairs' voxels on either side, in the top view).
-bool lower_level_falls_away(TopView& top, const std::vector<Vec3f>& centres,
-                            const std::vector<std::uint32_t>& among, const std::vector<int>& tag,
-                            int a, int b, bool b_upper, double radius) {
+// Whether one sherd's surface bends down across the border between two levels a and b (parts by
+// `tag` among `among`, whose top view is `top`; b the upper when `b_upper`; see
+// kFallingLevelMaxSlope). Each level's slope is that of the plane through its voxels within
+// kFallingLevelNearMm of the border (in the top view), along the direction from the upper level's
+// side of the border to the lower's (the centres of the step pairs' voxels on either side).
+bool bends_down_across(TopView& top, const std::vector<Vec3f>& centres,
+                       const std::vector<std::uint32_t>& among, const std::vector<int>& tag, int a,
+                       int b, bool b_upper, double radius) {
   const int lower = b_upper ? a : b;
   constexpr std::uint8_t kInBand = 1, kNearBand = 2;
   std::vector<std::uint8_t> mark(centres.size(), 0);
-  std::vector<std::uint32_t> band;  // voxels of either part in a step pair with the other
+  std::vector<std::uint32_t> band;  // voxels of either level in a step pair with the other
   std::vector<int> found;
   auto add_to_band = [&](std::uint32_t v) {
     if (!(mark[v] & kInBand)) mark[v] |= kInBand, band.push_back(v);
@@ -90,35 +90,45 @@ bool lower_level_falls_away(TopView& top, const std::vector<Vec3f>& centres,
       if (tag[n] == b) add_to_band(v), add_to_band(n);
     });
   }
-  Eigen::Vector2d side_sum[2] = {Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero()};
-  std::size_t side_count[2] = {0, 0};    // [0] the upper part's side, [1] the lower's
-  std::vector<std::uint32_t> near_band;  // the lower part's voxels near the border
+  // By side: [0] the upper level's, [1] the lower's.
+  Eigen::Vector2d band_sum[2] = {Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero()};
+  std::size_t band_count[2] = {0, 0};
+  std::vector<std::uint32_t> near_band[2];
   for (auto v : band) {
     const int side = tag[v] == lower;
-    side_sum[side] += centres[v].head<2>().cast<double>();
-    ++side_count[side];
+    band_sum[side] += centres[v].head<2>().cast<double>();
+    ++band_count[side];
     top.search(centres[v], kFallingLevelNearMm, found);
     for (auto f : found) {
       const auto n = top.voxel_at[f];
-      if (tag[n] == lower && !(mark[n] & kNearBand)) mark[n] |= kNearBand, near_band.push_back(n);
+      if ((tag[n] != a && tag[n] != b) || (mark[n] & kNearBand)) continue;
+      mark[n] |= kNearBand;
+      near_band[tag[n] == lower].push_back(n);
     }
   }
-  if (side_count[0] == 0 || side_count[1] == 0 || near_band.size() < 3) return false;
+  if (band_count[0] == 0 || band_count[1] == 0) return false;
   const Eigen::Vector2d across =
-      (side_sum[1] / side_count[1] - side_sum[0] / side_count[0]).normalized();
-  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-  for (auto v : near_band) mean += centres[v].cast<double>();
-  mean /= static_cast<double>(near_band.size());
-  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
-  for (auto v : near_band) {
-    const Eigen::Vector3d d = centres[v].cast<double>() - mean;
-    scatter += d * d.transpose();
-  }
-  const Eigen::Vector3d normal =
-      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(scatter).eigenvectors().col(0);
-  // A plane about as steep as a wall (normal.z near 0) has no meaningful slope: it does not fall.
-  if (std::abs(normal.z()) < kFallingLevelMinNormalZ) return false;
-  return -normal.head<2>().dot(across) / normal.z() <= kFallingLevelMaxSlope;
+      (band_sum[1] / band_count[1] - band_sum[0] / band_count[0]).normalized();
+  // A level's slope along `across`; none (NaN) for too few voxels or a plane about as steep as a
+  // wall (normal.z near 0), which has no meaningful slope.
+  auto slope_of = [&](const std::vector<std::uint32_t>& voxels) {
+    if (voxels.size() < kFallingLevelMinPlaneVoxels) return std::nan("");
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (auto v : voxels) mean += centres[v].cast<double>();
+    mean /= static_cast<double>(voxels.size());
+    Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+    for (auto v : voxels) {
+      const Eigen::Vector3d d = centres[v].cast<double>() - mean;
+      scatter += d * d.transpose();
+    }
+    const Eigen::Vector3d normal =
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(scatter).eigenvectors().col(0);
+    if (std::abs(normal.z()) < kFallingLevelMinNormalZ) return std::nan("");
+    return -normal.head<2>().dot(across) / normal.z();
+  };
+  const double upper_slope = slope_of(near_band[0]), lower_slope = slope_of(near_band[1]);
+  // Comparisons with NaN are false: a level without a slope shows no bend.
+  return lower_slope <= kFallingLevelMaxSlope || upper_slope - lower_slope >= kFallingLevelMinBend;
 }
 
 // Pairs (a, b) of parts (by the `borders` among them; core_rgb.size() of them) that are one
@@ -148,7 +158,7 @@ std::vector<std::pair<int, int>> levels_of_one_sherd(
       if (!apart || !one_clay || (kept_basin && !wider_upper)) continue;
       if (level_wall(heights) ||
           (level_wall(heights, kFallingLevelStepMaxMm, kFallingLevelStepMaxSpread) &&
-           lower_level_falls_away(top, centres, among, tag, a, b, b_upper, radius)))
+           bends_down_across(top, centres, among, tag, a, b, b_upper, radius)))
         levels.emplace_back(a, b);
     }
   }
