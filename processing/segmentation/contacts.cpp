@@ -68,14 +68,19 @@ StepBorders step_borders(const Graph& near, TopView& top, const std::vector<Vec3
   return borders;
 }
 
-// Whether one sherd's surface bends down across the border between two levels a and b (parts by
-// `tag` among `among`, whose top view is `top`; b the upper when `b_upper`; see
-// kFallingLevelMaxSlope). Each level's slope is that of the plane through its voxels within
-// kFallingLevelNearMm of the border (in the top view), along the direction from the upper level's
-// side of the border to the lower's (the centres of the step pairs' voxels on either side).
-bool bends_down_across(TopView& top, const std::vector<Vec3f>& centres,
-                       const std::vector<std::uint32_t>& among, const std::vector<int>& tag, int a,
-                       int b, bool b_upper, double radius) {
+// Slopes (rise over run) of two levels across the border between them, going from the upper.
+struct SlopesAcross {
+  double upper, lower;
+};
+
+// The slopes of two levels a and b (parts by `tag` among `among`, whose top view is `top`; b the
+// upper when `b_upper`) across the border between them (see kFallingLevelMaxSlope): each level's
+// is that of the plane through its voxels within kFallingLevelNearMm of the border (in the top
+// view), along the direction from the upper level's side of the border to the lower's (the
+// centres of the step pairs' voxels on either side). NaN for a level without one.
+SlopesAcross slopes_across(TopView& top, const std::vector<Vec3f>& centres,
+                           const std::vector<std::uint32_t>& among, const std::vector<int>& tag,
+                           int a, int b, bool b_upper, double radius) {
   const int lower = b_upper ? a : b;
   constexpr std::uint8_t kInBand = 1, kNearBand = 2;
   std::vector<std::uint8_t> mark(centres.size(), 0);
@@ -106,7 +111,7 @@ bool bends_down_across(TopView& top, const std::vector<Vec3f>& centres,
       near_band[tag[n] == lower].push_back(n);
     }
   }
-  if (band_count[0] == 0 || band_count[1] == 0) return false;
+  if (band_count[0] == 0 || band_count[1] == 0) return {std::nan(""), std::nan("")};
   const Eigen::Vector2d across =
       (band_sum[1] / band_count[1] - band_sum[0] / band_count[0]).normalized();
   // A level's slope along `across`; none (NaN) for too few voxels or a plane about as steep as a
@@ -126,9 +131,7 @@ bool bends_down_across(TopView& top, const std::vector<Vec3f>& centres,
     if (std::abs(normal.z()) < kFallingLevelMinNormalZ) return std::nan("");
     return -normal.head<2>().dot(across) / normal.z();
   };
-  const double upper_slope = slope_of(near_band[0]), lower_slope = slope_of(near_band[1]);
-  // Comparisons with NaN are false: a level without a slope shows no bend.
-  return lower_slope <= kFallingLevelMaxSlope || upper_slope - lower_slope >= kFallingLevelMinBend;
+  return {slope_of(near_band[0]), slope_of(near_band[1])};
 }
 
 // Pairs (a, b) of parts (by the `borders` among them; core_rgb.size() of them) that are one
@@ -156,10 +159,16 @@ std::vector<std::pair<int, int>> levels_of_one_sherd(
       const bool b_upper = 2 * borders.rises[a][b] > heights.size();
       const bool wider_upper = b_upper == (width[b] > width[a]);
       if (!apart || !one_clay || (kept_basin && !wider_upper)) continue;
-      if (level_wall(heights) ||
-          (level_wall(heights, kFallingLevelStepMaxMm, kFallingLevelStepMaxSpread) &&
-           bends_down_across(top, centres, among, tag, a, b, b_upper, radius)))
+      if (level_wall(heights)) {
         levels.emplace_back(a, b);
+      } else if (level_wall(heights, kFallingLevelStepMaxMm, kFallingLevelStepMaxSpread)) {
+        // Comparisons with NaN are false: a level without a slope shows neither.
+        const auto slopes = slopes_across(top, centres, among, tag, a, b, b_upper, radius);
+        const bool falls_away = slopes.lower <= kFallingLevelMaxSlope;
+        const bool bends_down = slopes.upper - slopes.lower >= kFallingLevelMinBend &&
+                                level_wall(heights, kLevelStepMaxMm, kFallingLevelStepMaxSpread);
+        if (falls_away || bends_down) levels.emplace_back(a, b);
+      }
     }
   }
   return levels;

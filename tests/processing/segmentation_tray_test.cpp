@@ -565,9 +565,13 @@ std::string case_name(const ::testing::TestParamInfo<TrayOfRun>& info) {
 // 925001's 925082 (3.0–10 × as long, area over width, as its longer border with the other).
 // The two levels of one sherd of one hue (0.0013 and 0.0012 apart) behind a step too uneven for a
 // level's wall (q10 3.5 and 3.0 mm, q90 7.2 and 6.1 mm: 2.04 and 2.07 ×), its surface bending down
-// across the border: the lower level falling away at a slope of −0.86 (sherd 7 of seed 133001's
+// across the border: the lower level falling away at a slope of −0.56 (sherd 7 of seed 133001's
 // tray 133065), or sloping 0.97 below the upper one (sherd 3 of seed 187001's tray 187069). Each
-// found as two before.
+// found as two before, as was the sherd of seed 253001's tray 253070 whose lower level falls away
+// at −0.59 behind a step of q90 8.7 mm.
+// Two sherds that a first form of that rule joined: one whose edge rises (slope 1.6) to a step of
+// q90 12.2 mm over a flat one (sloping −0.1 away; seed 195001's tray 195088), and one lying on
+// another that sloped −0.41 away from their border (seed 969001's tray 969017).
 class FormerlyFailingTray : public ::testing::TestWithParam<TrayOfRun> {};
 
 TEST_P(FormerlyFailingTray, EachSherdIsFoundOnceAndWhole) {
@@ -684,7 +688,10 @@ INSTANTIATE_TEST_SUITE_P(
                       TrayOfRun{"TwoAsOne_WholeSherdTakenForAFace", 151001, 151027},
                       TrayOfRun{"TwoAsOne_WholeSherdTakenForAFace", 925001, 925082},
                       TrayOfRun{"OneAsTwo_SurfaceBendingDownAcrossAStep", 133001, 133065},
-                      TrayOfRun{"OneAsTwo_SurfaceBendingDownAcrossAStep", 187001, 187069}),
+                      TrayOfRun{"OneAsTwo_SurfaceBendingDownAcrossAStep", 187001, 187069},
+                      TrayOfRun{"OneAsTwo_SurfaceBendingDownAcrossAStep", 253001, 253070},
+                      TrayOfRun{"TwoAsOne_EdgeRisingToAHighStep", 195001, 195088},
+                      TrayOfRun{"TwoAsOne_LevelSlopingGentlyAway", 969001, 969017}),
     case_name);
 
 // Whole narrow sherds kept apart beside a wider sherd of another hue (0.11 and 0.22 apart) whose
