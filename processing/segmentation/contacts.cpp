@@ -159,16 +159,21 @@ std::vector<std::pair<int, int>> levels_of_one_sherd(
       const bool b_upper = 2 * borders.rises[a][b] > heights.size();
       const bool wider_upper = b_upper == (width[b] > width[a]);
       if (!apart || !one_clay || (kept_basin && !wider_upper)) continue;
-      if (level_wall(heights)) {
+      if (!level_wall(heights, kFallingLevelStepMaxMm, kFallingLevelStepMaxSpread)) continue;
+      const bool close_clay =
+          off_either_line(core_rgb[a], core_rgb[b]) < kLevelCloseClayMaxOffClayLine;
+      const bool even_wall = level_wall(heights);
+      if (even_wall && close_clay) {
         levels.emplace_back(a, b);
-      } else if (level_wall(heights, kFallingLevelStepMaxMm, kFallingLevelStepMaxSpread)) {
-        // Comparisons with NaN are false: a level without a slope shows neither.
-        const auto slopes = slopes_across(top, centres, among, tag, a, b, b_upper, radius);
-        const bool falls_away = slopes.lower <= kFallingLevelMaxSlope;
-        const bool bends_down = slopes.upper - slopes.lower >= kFallingLevelMinBend &&
-                                level_wall(heights, kLevelStepMaxMm, kFallingLevelStepMaxSpread);
-        if (falls_away || bends_down) levels.emplace_back(a, b);
+        continue;
       }
+      // Comparisons with NaN are false: a level without a slope shows neither.
+      const auto slopes = slopes_across(top, centres, among, tag, a, b, b_upper, radius);
+      const bool falls_away =
+          slopes.lower <= (even_wall ? kOffClayLevelMaxSlope : kFallingLevelMaxSlope);
+      const bool bends_down = close_clay && slopes.upper - slopes.lower >= kFallingLevelMinBend &&
+                              level_wall(heights, kLevelStepMaxMm, kFallingLevelStepMaxSpread);
+      if (falls_away || bends_down) levels.emplace_back(a, b);
     }
   }
   return levels;

@@ -572,6 +572,10 @@ std::string case_name(const ::testing::TestParamInfo<TrayOfRun>& info) {
 // Two sherds that a first form of that rule joined: one whose edge rises (slope 1.6) to a step of
 // q90 12.2 mm over a flat one (sloping −0.1 away; seed 195001's tray 195088), and one lying on
 // another that sloped −0.41 away from their border (seed 969001's tray 969017).
+// Two sherds of close clays (their cores 0.0065, 0.0088 and 0.0123 off each other's clay line)
+// joined as one sherd's levels behind an even wall, the lower running on flat beside it (slopes
+// −0.03, 0.10 and 0.33): seed 159001's tray 159051, 157001's 157056, 175001's 175087, each found
+// as one before; a fracture face that far off its sherd's line falls away from it.
 class FormerlyFailingTray : public ::testing::TestWithParam<TrayOfRun> {};
 
 TEST_P(FormerlyFailingTray, EachSherdIsFoundOnceAndWhole) {
@@ -691,7 +695,10 @@ INSTANTIATE_TEST_SUITE_P(
                       TrayOfRun{"OneAsTwo_SurfaceBendingDownAcrossAStep", 187001, 187069},
                       TrayOfRun{"OneAsTwo_SurfaceBendingDownAcrossAStep", 253001, 253070},
                       TrayOfRun{"TwoAsOne_EdgeRisingToAHighStep", 195001, 195088},
-                      TrayOfRun{"TwoAsOne_LevelSlopingGentlyAway", 969001, 969017}),
+                      TrayOfRun{"TwoAsOne_LevelSlopingGentlyAway", 969001, 969017},
+                      TrayOfRun{"TwoAsOne_CloseClayLevelRunningOnFlat", 159001, 159051},
+                      TrayOfRun{"TwoAsOne_CloseClayLevelRunningOnFlat", 157001, 157056},
+                      TrayOfRun{"TwoAsOne_CloseClayLevelRunningOnFlat", 175001, 175087}),
     case_name);
 
 // Whole narrow sherds kept apart beside a wider sherd of another hue (0.11 and 0.22 apart) whose
