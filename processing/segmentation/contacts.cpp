@@ -138,8 +138,10 @@ SlopesAcross slopes_across(TopView& top, const std::vector<Vec3f>& centres,
 // sherd's levels, judged by their borders and by the colours of their cores (`core_rgb`, sums) and
 // their widths (`width`, mm; `face_width` as a fracture face: infinite for a part that is none, a
 // small core's basin kept apart, judged only as the lower level beside a wider part and the
-// upper beside a narrower one: see split_at_contacts in contacts.h).
-// The parts' voxels are `among` (by `tag`), whose top view is `top`.
+// upper beside a narrower one: see split_at_contacts in contacts.h), and behind an uneven step or
+// between cores off each other's clay line by the levels' slopes across the border (see
+// kFallingLevelMaxSlope and kLevelCloseClayMaxOffClayLine). The parts' voxels are `among` (by
+// `tag`), whose top view is `top`.
 std::vector<std::pair<int, int>> levels_of_one_sherd(
     StepBorders& borders, TopView& top, const std::vector<Vec3f>& centres,
     const std::vector<std::uint32_t>& among, const std::vector<int>& tag,
