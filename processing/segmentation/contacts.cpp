@@ -138,10 +138,11 @@ SlopesAcross slopes_across(TopView& top, const std::vector<Vec3f>& centres,
 // sherd's levels, judged by their borders and by the colours of their cores (`core_rgb`, sums) and
 // their widths (`width`, mm; `face_width` as a fracture face: infinite for a part that is none, a
 // small core's basin kept apart, judged only as the lower level beside a wider part and the
-// upper beside a narrower one: see split_at_contacts in contacts.h), and behind an uneven step or
-// between cores off each other's clay line by the levels' slopes across the border (see
-// kFallingLevelMaxSlope and kLevelCloseClayMaxOffClayLine). The parts' voxels are `among` (by
-// `tag`), whose top view is `top`.
+// upper beside a narrower one: see split_at_contacts in contacts.h), and behind an uneven step,
+// between cores off each other's clay line or where the levels touch a little by the levels'
+// slopes across the border (see kFallingLevelMaxSlope, kLevelCloseClayMaxOffClayLine and
+// kTouchingLevelMaxContactShare). The parts' voxels are `among` (by `tag`), whose top view is
+// `top`.
 std::vector<std::pair<int, int>> levels_of_one_sherd(
     StepBorders& borders, TopView& top, const std::vector<Vec3f>& centres,
     const std::vector<std::uint32_t>& among, const std::vector<int>& tag,
@@ -153,24 +154,32 @@ std::vector<std::pair<int, int>> levels_of_one_sherd(
     for (int b = a + 1; b < parts; ++b) {
       auto& heights = borders.heights[a][b];
       const double border_mm = border_length_mm(borders.band[a][b], borders.band[b][a], radius);
-      const bool apart = borders.contacts[a][b] <= kLevelMaxContactShare * heights.size() &&
-                         border_mm >= kLevelMinBorderShare * std::min(width[a], width[b]);
+      const double contacts = static_cast<double>(borders.contacts[a][b]);
+      const bool apart = contacts <= kLevelMaxContactShare * heights.size();
+      const bool touching = !apart && contacts <= kTouchingLevelMaxContactShare * heights.size();
+      const bool long_border = border_mm >= kLevelMinBorderShare * std::min(width[a], width[b]);
       const bool one_clay = of_one_clay(core_rgb[a], face_width[a], core_rgb[b], face_width[b],
                                         kLevelMaxHueDifference, kLevelFaceMaxOffClayLine);
       const bool kept_basin = std::isinf(face_width[a]) || std::isinf(face_width[b]);
       const bool b_upper = 2 * borders.rises[a][b] > heights.size();
       const bool wider_upper = b_upper == (width[b] > width[a]);
-      if (!apart || !one_clay || (kept_basin && !wider_upper)) continue;
+      if (!(apart || touching) || !long_border || !one_clay || (kept_basin && !wider_upper))
+        continue;
       if (!level_wall(heights, kFallingLevelStepMaxMm, kFallingLevelStepMaxSpread)) continue;
-      const bool close_clay =
-          off_either_line(core_rgb[a], core_rgb[b]) < kLevelCloseClayMaxOffClayLine;
+      const float off_line = off_either_line(core_rgb[a], core_rgb[b]);
+      const bool close_clay = off_line < kLevelCloseClayMaxOffClayLine;
       const bool even_wall = level_wall(heights);
-      if (even_wall && close_clay) {
+      if (apart && even_wall && close_clay) {
         levels.emplace_back(a, b);
         continue;
       }
+      if (touching && off_line >= kTouchingLevelMaxOffClayLine) continue;
       // Comparisons with NaN are false: a level without a slope shows neither.
       const auto slopes = slopes_across(top, centres, among, tag, a, b, b_upper, radius);
+      if (touching) {
+        if (slopes.upper - slopes.lower >= kTouchingLevelMinBend) levels.emplace_back(a, b);
+        continue;
+      }
       const bool falls_away =
           slopes.lower <= (even_wall ? kOffClayLevelMaxSlope : kFallingLevelMaxSlope);
       const bool bends_down = close_clay && slopes.upper - slopes.lower >= kFallingLevelMinBend &&

@@ -108,6 +108,25 @@ inline constexpr double kFallingLevelMinNormalZ = 0.1;
 inline constexpr double kLevelCloseClayMaxOffClayLine = 0.0055;
 inline constexpr double kOffClayLevelMaxSlope = -0.3;
 
+// Levels that touch in 3-D beside the step more than kLevelMaxContactShare allows, up to
+// kTouchingLevelMaxContactShare (a step fading out along the border, the wall seen where it is
+// low), are one sherd's only where their cores lie within kTouchingLevelMaxOffClayLine of each
+// other's clay line and the surface bends down across the step: the upper level's slope lies
+// kTouchingLevelMinBend or more above the lower's, whatever the step's shape within the loose
+// bounds (kFallingLevelStepMaxMm, kFallingLevelStepMaxSpread). A sherd lying on another of a close
+// clay runs on flat beside it. Measured with a debug build (every pair of judged parts with
+// kLevelMinStepPairs step pairs, with its truth and both levels' slopes) over 80 runs (1 / 1001 /
+// 5001 / … / 15001, 133001 / 135001 / … / 275001): of the pairs at least 80 % pure, of one clay,
+// with a long border and a loose wall, touching at a share of 0.06–0.4 and within 0.0055 of each
+// other's line, 7 were one sherd's (share 0.068–0.119, cores 0.0003–0.0021 off each other's line,
+// bends 0.55–1.40 but one of 0.17; 199089 left split) and 4 two sherds' (0.0030–0.0046 off at
+// shares 0.062–0.135 with bends −0.10…0.38, 0.0024 off at 0.180). A first form (0.0055 and a bend
+// of 0.1) joined two sherds 0.0040 off with a bend of 0.19 (981042, of 16 runs held out: 961001 /
+// 963001 / … / 991001); the bounds lie between the two kinds.
+inline constexpr double kTouchingLevelMaxContactShare = 0.125;
+inline constexpr double kTouchingLevelMaxOffClayLine = 0.0025;
+inline constexpr double kTouchingLevelMinBend = 0.4;
+
 // The step heights along a border (reordered) are those of a wall between one sherd's levels:
 // enough of them, a real step, no higher than such a wall (`max_mm`) and about equally high all
 // along (90th / 10th percentile at most `max_spread`).
