@@ -215,6 +215,129 @@ std::vector<int> leaked_to(const Graph& near, const std::vector<Vec3f>& centres,
   return leaked;
 }
 
+// The voxels of `strip`, in part `own` by `tag`, that stay there when the strip goes to part
+// `to` of another clay (see kStripMinOwnPieceMm2): the pieces, connected and `min_piece` voxels or
+// more, whose colour — each voxel's summed with its neighbours' in the strip, against the noise of
+// a few points — lies nearer the clay line of their own part (colour `own_rgb`, less the strip)
+// than of the new one (`new_rgb`), and that border the rest of their own part in 3-D more than
+// the new part. `mark` is scratch space, all zero, sized for all voxels.
+std::vector<std::uint32_t> own_clay_pieces(const Graph& near,
+                                           const std::vector<std::uint32_t>& strip,
+                                           const std::vector<int>& tag, int own, int to,
+                                           const std::vector<Vec3f>& voxel_rgb,
+                                           const Vec3f& new_rgb, const Vec3f& own_rgb,
+                                           std::size_t min_piece, std::vector<std::uint8_t>& mark) {
+  enum : std::uint8_t { kOutside = 0, kInStrip, kOwnClay, kInPiece };
+  for (auto v : strip) mark[v] = kInStrip;
+  std::vector<std::uint32_t> own_clay;
+  for (auto v : strip) {
+    Vec3f around = voxel_rgb[v];
+    for (auto n : near[v]) {
+      if (mark[n] != kOutside) around += voxel_rgb[n];
+    }
+    if (off_either_line(around, own_rgb) < off_either_line(around, new_rgb)) own_clay.push_back(v);
+  }
+  for (auto v : own_clay) mark[v] = kOwnClay;
+  std::vector<std::uint32_t> staying, piece;
+  for (auto first : own_clay) {
+    if (mark[first] != kOwnClay) continue;
+    piece.assign(1, first);
+    mark[first] = kInPiece;
+    std::size_t along_own = 0, along_new = 0;  // neighbour pairs outside the strip
+    for (std::size_t k = 0; k < piece.size(); ++k) {
+      for (auto n : near[piece[k]]) {
+        if (mark[n] == kOwnClay) mark[n] = kInPiece, piece.push_back(n);
+        if (mark[n] == kOutside) along_own += tag[n] == own, along_new += tag[n] == to;
+      }
+    }
+    if (piece.size() >= min_piece && along_own > along_new)
+      staying.insert(staying.end(), piece.begin(), piece.end());
+  }
+  for (auto v : strip) mark[v] = kOutside;
+  return staying;
+}
+
+// Gives the strips of `cluster` that the watershed handed to another part (by `tag`, `parts` of
+// them; cores `seeds`) than their sherd's back to that one (see kStripMinAlongPairs): the voxels
+// nearer another part's core than their own part's by more than `slack` (leaked_to) flood the
+// cluster again as cores of the part they are nearer; the voxels that then change part make the
+// strips, less the pieces of their old part's clay (own_clay_pieces).
+void reclaim_leaked_strips(const Graph& near, const std::vector<Vec3f>& centres,
+                           const std::vector<std::uint32_t>& cluster,
+                           std::vector<std::pair<std::uint32_t, int>> seeds,
+                           const std::vector<Vec3f>& voxel_rgb, const std::vector<float>& depth,
+                           int parts, double slack, const CoreSizes& sizes, std::vector<int>& tag) {
+  std::vector<std::uint8_t> judged(parts, 0);
+  for (auto v : cluster) judged[tag[v]] = 1;
+  if (std::count(judged.begin(), judged.end(), 1) < 2) return;
+  for (auto& [v, part] : seeds) part = tag[v];
+  const auto leaked = leaked_to(near, centres, cluster, seeds, tag, judged, slack);
+  std::vector<std::uint8_t> leaks(static_cast<std::size_t>(parts) * parts, 0);  // [from][to]
+  for (auto v : cluster) {
+    if (leaked[v] < 0) continue;
+    leaks[tag[v] * parts + leaked[v]] = 1;
+    seeds.emplace_back(v, leaked[v]);
+  }
+  if (std::find(leaks.begin(), leaks.end(), 1) == leaks.end()) return;
+  // The parts after the flood, where a voxel moves only from a part it leaked from to that part.
+  std::vector<int> after(near.size(), -1);
+  flood_from_cores(near, cluster, seeds, depth, after);
+  for (auto v : cluster) {
+    if (!leaks[tag[v] * parts + after[v]]) after[v] = tag[v];
+  }
+  // Each strip (moving voxels connected within their part, going to one part) goes over when it
+  // shows that part's clay alone, or shows neither part's alone and lies along that part far longer
+  // than along the rest of its own.
+  std::vector<Vec3f> part_rgb(parts, Vec3f::Zero());  // before any strip goes over
+  if (!voxel_rgb.empty())
+    for (auto v : cluster) part_rgb[tag[v]] += voxel_rgb[v];
+  std::vector<int> strip_of(near.size(), -1);
+  std::vector<std::uint8_t> mark(near.size(), 0);
+  std::vector<std::uint32_t> strip;
+  int strips = 0;
+  for (auto first : cluster) {
+    if (after[first] == tag[first] || strip_of[first] >= 0) continue;
+    const int from = tag[first], to = after[first];
+    strip.assign(1, first);
+    strip_of[first] = strips;
+    for (std::size_t k = 0; k < strip.size(); ++k) {
+      for (auto n : near[strip[k]]) {
+        if (strip_of[n] < 0 && tag[n] == from && after[n] == to)
+          strip_of[n] = strips, strip.push_back(n);
+      }
+    }
+    std::size_t along_to = 0, along_from = 0;
+    for (auto v : strip) {
+      for (auto n : near[v]) {
+        along_to += after[n] == to && strip_of[n] != strips;
+        along_from += after[n] == from;
+      }
+    }
+    bool goes = along_to >= kStripMinAlongPairs && along_to >= kStripMinAlongShare * along_from;
+    bool of_other_clay = false;       // goes by colour, to a part of a clay apart from its own
+    Vec3f from_rgb = part_rgb[from];  // less the strip
+    if (!voxel_rgb.empty()) {
+      Vec3f strip_rgb = Vec3f::Zero();
+      for (auto v : strip) strip_rgb += voxel_rgb[v];
+      from_rgb -= strip_rgb;
+      const bool to_clay = off_either_line(strip_rgb, part_rgb[to]) < kStripMaxOffClayLine;
+      const bool from_clay = off_either_line(strip_rgb, from_rgb) < kStripMaxOffClayLine;
+      if (to_clay != from_clay) goes = to_clay;
+      of_other_clay = to_clay && !from_clay &&
+                      off_either_line(part_rgb[to], from_rgb) >= kStripTrimMinClaysApart;
+    }
+    ++strips;
+    if (!goes) continue;
+    std::vector<std::uint32_t> staying;
+    if (of_other_clay) {
+      staying = own_clay_pieces(near, strip, tag, from, to, voxel_rgb, part_rgb[to], from_rgb,
+                                sizes.min_own_clay_piece_voxels, mark);
+    }
+    for (auto v : strip) tag[v] = to;
+    for (auto v : staying) tag[v] = from;
+  }
+}
+
 // The bands of the borders between the parts (by `tag`; `parts` of them) in 3-D: band[a][b] is
 // how many voxels of `among` in part a have a neighbour in part b. Voxels `leaked` to another
 // basin (leaked_to, when given) are no part of a band.
@@ -845,6 +968,9 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
     }
     for (auto [a, b] : no_neck) group.join(a, b);
   }
+  for (auto v : cluster) tag[v] = group.root(tag[v]);
+  reclaim_leaked_strips(near, centres, cluster, seeds, voxel_rgb, distance, cores, erosion, sizes,
+                        tag);
   std::vector<std::vector<std::uint32_t>> parts;
   append_parts(cluster, tag, group, cores, parts);
   return parts;

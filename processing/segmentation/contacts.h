@@ -182,6 +182,53 @@ inline constexpr double kNoNeckMaxHueDifference = 0.0085;
 inline constexpr double kSmoothMaxStepShare = 0.1;
 inline constexpr double kSmoothMinBorderShare = 0.5;
 
+// The watershed's depth is the distance from the cluster's boundary, and the boundary test takes a
+// crease for an edge: where a sherd's fracture face meets its surface, or where it rests on
+// another. A strip of a sherd between two such lines (a face below its edge, its end lying on the
+// neighbour) rises to a ridge with no core of its own and goes to whichever basin reaches the ridge
+// highest: often the neighbour's, across the contact. Its voxels lie nearer their own sherd's core
+// than the core of the part they are in, along the surface, by more than the erosion (leaked_to in
+// contacts.cpp). So, after the joins, the cluster is flooded again with those voxels as cores of
+// the parts they are nearer, and each strip (voxels moving from one part to one other, connected)
+// goes over when its colour is that part's clay (within kStripMaxOffClayLine of its clay line) and
+// not its own part's (as far off its line or more); it stays when its colour is its own part's
+// clay alone; otherwise (no colours, or both clays or neither) it goes over when it lies along that
+// part in 3-D: kStripMinAlongPairs neighbour pairs or more, and kStripMinAlongShare × its pairs
+// with the rest of its own part. Being nearer another core is not enough: near a contact, a part's
+// own voxels lie nearer a neighbour's core when their own core is far. Measured with a debug build
+// (every strip of 20 voxels or more moving between parts that stand for different sherds, with its
+// truth): over 20 runs of 100 trays (1 / 1001 / 5001 / … / 15001, 133001, 135001, 197001 / 199001 /
+// … / 215001), 305 strips were of their new part's sherd and 143 of their own part's; of those
+// lying along the new part as above, 167 of its sherd (16,469 voxels), none of their own part's (2
+// mixed). Over 9 more (259001 / 261001 / … / 275001), 140 and 55; of those of the new part's clay
+// and not their own part's, 79 of the new part's sherd (8,490 voxels), one of their own part's (23
+// voxels). A first form that let a strip go by the 3-D rule whatever its colour merged 139065 (a
+// strip of its own part's clay alone along the neighbour). Beside the binary before, with the
+// pieces below kept back: over the 80 runs (1 / 1001 / … / 15001, 133001 / … / 275001) 7 trays
+// made right (143093, 187002, 209056, 219041, 223099, 257093, 267011), 2 wrong (165013: a strip
+// gone rightly, the sherd split by a later step; 179062: a third sherd's piece along the
+// neighbour); on 961001 / … / 991001 3 made right, none wrong; on 16 runs never run before
+// (1065001 / 1067001 / … / 1095001) 3 made right (1069073, 1081034, 1083028), 1 wrong (1067013).
+inline constexpr std::size_t kStripMinAlongPairs = 100;
+inline constexpr double kStripMinAlongShare = 2.0;
+inline constexpr double kStripMaxOffClayLine = 0.005;
+// A strip that goes by its colour to a part of another clay (the clay lines
+// kStripTrimMinClaysApart or more apart) may carry a piece of its old part's sherd, where the new
+// cores' flood ran past its sherd's edge (189044: 48 of 297 voxels, with which the sherd's two
+// parts were no longer joined later). Pieces of the strip whose colour — each voxel's summed with
+// its neighbours' in the strip; one voxel's few points are noise — lies nearer the old part's clay
+// line than the new part's stay there when they are kStripMinOwnPieceMm2 or more (28 voxels on
+// the trays) and border the rest of the old part in 3-D more than the new part (own_clay_pieces
+// in contacts.cpp). Measured with a debug build over 10 runs (1 / 1001 / 5001 / … / 15001, 133001,
+// 135001): 158 strips went by colour to a part of another clay, with 7,416 voxels of the new
+// part's sherd and 236 of the old part's. Every voxel nearer the old clay by its smoothed colour
+// would have kept back 175 of the old part's sherd and 387 of the new part's; connected pieces
+// as large as above, 62 and 57 (a piece of 36 voxels of the new part's sherd, bordering the new
+// part only: 15077); bordering the old part more, 62 and 21 (two strips: 7037 26 and 19, 15077 36
+// and 2). In 189044 a piece of 45 voxels, all of the old part's sherd, stays.
+inline constexpr double kStripTrimMinClaysApart = 2.0 * kStripMaxOffClayLine;
+inline constexpr double kStripMinOwnPieceMm2 = 20.0;
+
 // Splits one Euclidean cluster where sherds touch or lean on each other. A sherd's surface is
 // a patch that stays wide everywhere, while two sherds meet at a point or along a short stretch
 // of their edges: eroding the cluster (voxels within `erosion` of its boundary, measured along
@@ -224,12 +271,15 @@ inline constexpr double kSmoothMinBorderShare = 0.5;
 // order (one sherd's basins from 4.6 mm lower to 4.2 mm higher at their steps; 783065 5.9 mm lower)
 // and are left as they are. Beside the binary before: 787094 made right, no other tray moved on the
 // 112 runs; on 16 runs never run before (801001 / 803001 / … / 831001) none moved.
+// Last, strips that the watershed handed to another part than their sherd's go back to their
+// sherd's part (see kStripMinAlongPairs).
 struct CoreSizes {
   std::size_t min_core_voxels;       // smaller cores are ignored
   std::size_t min_own_core_voxels;   // smaller cores' parts join a neighbour …
   std::size_t min_own_basin_voxels;  // … unless the part is at least this large …
   std::size_t min_wide_core_voxels;  // … beside a part of its own with a core this large
   std::size_t max_small_sherd_step_band_voxels;  // see kSmallSherdMaxStepBandMm2 below
+  std::size_t min_own_clay_piece_voxels;         // see kStripMinOwnPieceMm2
 };
 
 // A small core's basin smaller than min_own_basin_voxels is mostly the far side of a step inside

@@ -78,6 +78,7 @@ std::vector<std::vector<std::uint32_t>> clusters(const std::vector<Vec3f>& point
   sizes.min_wide_core_voxels = static_cast<std::size_t>(kWideCoreMm2 / (leaf * leaf));
   sizes.max_small_sherd_step_band_voxels =
       static_cast<std::size_t>(kSmallSherdMaxStepBandMm2 / (leaf * leaf));
+  sizes.min_own_clay_piece_voxels = static_cast<std::size_t>(kStripMinOwnPieceMm2 / (leaf * leaf));
   std::vector<float> distance(voxels.centres.size());
   std::vector<int> tag(voxels.centres.size());
   std::vector<Vec3f> voxel_rgb;  // colour sums per voxel, when the scan has colours
