@@ -220,40 +220,39 @@ std::vector<int> leaked_to(const Graph& near, const std::vector<Vec3f>& centres,
 // more, whose colour — each voxel's summed with its neighbours' in the strip, against the noise of
 // a few points — lies nearer the clay line of their own part (colour `own_rgb`, less the strip)
 // than of the new one (`new_rgb`), and that border the rest of their own part in 3-D more than
-// the new part. `mark` is scratch space, all zero, sized for all voxels.
+// the new part. `mark` is scratch space, all zero (sized here for all voxels when empty).
 std::vector<std::uint32_t> own_clay_pieces(const Graph& near,
                                            const std::vector<std::uint32_t>& strip,
                                            const std::vector<int>& tag, int own, int to,
                                            const std::vector<Vec3f>& voxel_rgb,
                                            const Vec3f& new_rgb, const Vec3f& own_rgb,
                                            std::size_t min_piece, std::vector<std::uint8_t>& mark) {
-  enum : std::uint8_t { kOutside = 0, kInStrip, kOwnClay, kInPiece };
-  for (auto v : strip) mark[v] = kInStrip;
+  mark.resize(near.size(), 0);
+  for (auto v : strip) mark[v] = 1;
   std::vector<std::uint32_t> own_clay;
   for (auto v : strip) {
     Vec3f around = voxel_rgb[v];
     for (auto n : near[v]) {
-      if (mark[n] != kOutside) around += voxel_rgb[n];
+      if (mark[n]) around += voxel_rgb[n];
     }
     if (off_either_line(around, own_rgb) < off_either_line(around, new_rgb)) own_clay.push_back(v);
   }
-  for (auto v : own_clay) mark[v] = kOwnClay;
-  std::vector<std::uint32_t> staying, piece;
-  for (auto first : own_clay) {
-    if (mark[first] != kOwnClay) continue;
-    piece.assign(1, first);
-    mark[first] = kInPiece;
-    std::size_t along_own = 0, along_new = 0;  // neighbour pairs outside the strip
-    for (std::size_t k = 0; k < piece.size(); ++k) {
-      for (auto n : near[piece[k]]) {
-        if (mark[n] == kOwnClay) mark[n] = kInPiece, piece.push_back(n);
-        if (mark[n] == kOutside) along_own += tag[n] == own, along_new += tag[n] == to;
+  for (auto v : strip) mark[v] = 0;
+  for (auto v : own_clay) mark[v] = 1;
+  const auto pieces = components(near, own_clay, mark);
+  for (auto v : strip) mark[v] = 1;  // the neighbours outside the strip are what a piece borders
+  std::vector<std::uint32_t> staying;
+  for (const auto& piece : pieces) {
+    if (piece.size() < min_piece) continue;
+    std::size_t along_own = 0, along_new = 0;
+    for (auto v : piece) {
+      for (auto n : near[v]) {
+        if (!mark[n]) along_own += tag[n] == own, along_new += tag[n] == to;
       }
     }
-    if (piece.size() >= min_piece && along_own > along_new)
-      staying.insert(staying.end(), piece.begin(), piece.end());
+    if (along_own > along_new) staying.insert(staying.end(), piece.begin(), piece.end());
   }
-  for (auto v : strip) mark[v] = kOutside;
+  for (auto v : strip) mark[v] = 0;
   return staying;
 }
 
@@ -292,7 +291,7 @@ void reclaim_leaked_strips(const Graph& near, const std::vector<Vec3f>& centres,
   if (!voxel_rgb.empty())
     for (auto v : cluster) part_rgb[tag[v]] += voxel_rgb[v];
   std::vector<int> strip_of(near.size(), -1);
-  std::vector<std::uint8_t> mark(near.size(), 0);
+  std::vector<std::uint8_t> mark;  // own_clay_pieces' scratch space
   std::vector<std::uint32_t> strip;
   int strips = 0;
   for (auto first : cluster) {
