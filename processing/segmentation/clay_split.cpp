@@ -110,14 +110,23 @@ constexpr double kPieceMinPairsPerVoxel = 0.1;
 // touches, where the two clays' lines to grey lie close (within 0.012) and the strip touches the
 // other sherd more in 3-D than its own, whose crease above it is not seen. Which sherd's face a
 // strip is, the slope tells: a fracture face falls away from its sherd's surface, so the part
-// uphill of it (uphill_parts) is its own sherd. So the strip goes only when kFaceMinUphillShare of
-// its voxels or more have the other part uphill. Measured with a debug build on the 83 trays of the
+// uphill of it (uphill_parts) is its own sherd. So the strip goes only when enough of it has the
+// other part uphill, at first 0.1 of its voxels. Measured with a debug build on the 83 trays of the
 // 80 runs (1, 1001, 5001, …, 15001; 133001, …, 275001) where the rule moved a region: the 72
 // regions moved rightly had 0.047 (one, 64 voxels of tray 193022), then 0.15–0.98 of their voxels
 // with the other part uphill (all but six 0.35 or more); of the 9 moved wrongly, whole of their own
 // sherd, six had 0–0.07 (135057, 145025, 211071, 229024, 229045, 229088: five of them left their
 // sherd split), three 0.29–0.44.
-constexpr double kFaceMinUphillShare = 0.1;
+// Read over the whole strip, that share moved a strip of the part's own sherd barely joined to it
+// in 3-D (5 and 9 neighbour pairs) whose far end lay below the other part (0.106 and 0.130 of it;
+// trays 165013, 1067013: split). So the share is read on the piece of the strip that hangs from
+// the other part (pieces_hanging_from_others): where a strip is that part's face, that piece falls
+// away from it. Measured with a debug build over 96 runs (the 80 above and 961001, 963001, …,
+// 991001): of the 40 regions moved rightly between two sherds' parts, the piece hanging from the
+// part they went to had 0.43–1.0 of its voxels with that part uphill (all but one 0.56 or more);
+// of the 3 moved wrongly, each all of its own part's sherd, 0.13 and 0.20 (165013, 171079) and
+// 0.88 (253051).
+constexpr double kFaceMinUphillShare = 0.3;
 constexpr double kRegionMaxPairsPerVoxel = 1.9;
 constexpr double kTopViewDecides = 1.5;
 constexpr float kFarFromClayHue = 0.05f;
@@ -465,6 +474,7 @@ struct HangingScratch {
 // runs never run before (833001, 835001, …, 863001): no tray made right or wrong (exact count 1,582
 // of 1,600, merged 13, split 8, both); 9 trays gained, one lost (855033, 0.47 %: a piece of its own
 // part's sherd went to the part it hangs from, 0.0124 off that clay's line).
+// The rule for faces of the part's own clay reads its slope on such a piece (kFaceMinUphillShare).
 std::map<int, std::vector<std::uint32_t>> pieces_hanging_from_others(
     const Graph& near, const std::vector<Vec3f>& centres, const std::vector<std::uint32_t>& region,
     int p, const std::vector<int>& part_of, const std::vector<std::uint8_t>& in_region,
@@ -588,9 +598,16 @@ std::vector<std::vector<std::uint32_t>> faces_to_their_clay(
           best = q, most = pairs;
       }
       if (best < 0) continue;
-      const auto below_best = std::count_if(region.begin(), region.end(),
+      // The slope is read where the region hangs from `best`: away from it, a strip of the part's
+      // own sherd may lie on any slope.
+      const auto pieces =
+          pieces_hanging_from_others(near, centres, region, p, top.part_of, mark, hanging_scratch);
+      const auto hanging = pieces.find(best);
+      if (hanging == pieces.end()) continue;
+      const auto& piece = hanging->second;
+      const auto below_best = std::count_if(piece.begin(), piece.end(),
                                             [&](std::uint32_t v) { return uphill_of[v] == best; });
-      if (static_cast<double>(below_best) >= kFaceMinUphillShare * region.size()) {
+      if (static_cast<double>(below_best) >= kFaceMinUphillShare * piece.size()) {
         for (auto v : region) moved_to[v] = best;
       }
     }

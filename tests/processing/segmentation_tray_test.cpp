@@ -592,6 +592,11 @@ std::string case_name(const ::testing::TestParamInfo<TrayOfRun>& info) {
 // A strip of a sherd nearer its neighbour's core, lying along the neighbour's part (398 neighbour
 // pairs against 21) but showing its own part's clay alone (0.0007 off its line, 0.0091 off the
 // neighbour's): sherd 8 of seed 139001's tray 139065, merged when the 3-D rule alone judged it.
+// A strip of a sherd's own clay, given back to its part from the neighbour's by that rule, barely
+// joined to its part in 3-D (5 and 9 neighbour pairs, 25 and 188 with the neighbour), which the
+// face rule then moved back to the neighbour by the slope of the whole strip (0.106 and 0.130 of it
+// with the neighbour uphill), where the piece hanging from the neighbour does not fall away from
+// it (0.13 and 0.21): sherd 4 of seed 165001's tray 165013, 2 of 1067001's 1067013, found split.
 class FormerlyFailingTray : public ::testing::TestWithParam<TrayOfRun> {};
 
 TEST_P(FormerlyFailingTray, EachSherdIsFoundOnceAndWhole) {
@@ -723,7 +728,9 @@ INSTANTIATE_TEST_SUITE_P(
                       TrayOfRun{"PieceInTheNeighbour_StripOfItsClay", 257001, 257093},
                       TrayOfRun{"PieceInTheNeighbour_StripOfItsClay", 267001, 267011},
                       TrayOfRun{"PieceInTheNeighbour_StripOfItsClay", 223001, 223099},
-                      TrayOfRun{"TwoAsOne_StripOfItsOwnClayAlongTheNeighbour", 139001, 139065}),
+                      TrayOfRun{"TwoAsOne_StripOfItsOwnClayAlongTheNeighbour", 139001, 139065},
+                      TrayOfRun{"OneAsTwo_OwnStripNotFallingFromTheNeighbour", 165001, 165013},
+                      TrayOfRun{"OneAsTwo_OwnStripNotFallingFromTheNeighbour", 1067001, 1067013}),
     case_name);
 
 // Whole narrow sherds kept apart beside a wider sherd of another hue (0.11 and 0.22 apart) whose
