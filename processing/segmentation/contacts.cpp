@@ -5,6 +5,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <memory>
 #include <numeric>
 #include <optional>
 #include <unordered_map>
@@ -256,6 +257,30 @@ std::vector<std::uint32_t> own_clay_pieces(const Graph& near,
   return staying;
 }
 
+// Whether `strip` (strip number `id` in `strip_of`, in part `from` by `tag`) lies along part `to`
+// in the top view and hardly along the rest of its own part: its voxels with a top-view neighbour
+// within `radius` in each (see kStripMaxTopViewFromShare).
+bool lies_along_in_top_view(TopView& top, const std::vector<Vec3f>& centres,
+                            const std::vector<std::uint32_t>& strip,
+                            const std::vector<int>& strip_of, int id, const std::vector<int>& tag,
+                            int to, int from, double radius) {
+  std::size_t along_to = 0, along_from = 0;
+  std::vector<int> found;
+  for (auto v : strip) {
+    top.search(centres[v], radius, found);
+    bool by_to = false, by_from = false;
+    for (auto f : found) {
+      const auto n = top.voxel_at[f];
+      by_to = by_to || tag[n] == to;
+      by_from = by_from || (tag[n] == from && strip_of[n] != id);
+    }
+    along_to += by_to, along_from += by_from;
+  }
+  const auto size = static_cast<double>(strip.size());
+  return along_to >= kStripMinTopViewToShare * size &&
+         along_from <= kStripMaxTopViewFromShare * size;
+}
+
 // Gives the strips of `cluster` that the watershed handed to another part (by `tag`, `parts` of
 // them; cores `seeds`) than their sherd's back to that one (see kStripMinAlongPairs): the voxels
 // nearer another part's core than their own part's by more than `slack` (leaked_to) flood the
@@ -291,6 +316,7 @@ void reclaim_leaked_strips(const Graph& near, const std::vector<Vec3f>& centres,
   if (!voxel_rgb.empty())
     for (auto v : cluster) part_rgb[tag[v]] += voxel_rgb[v];
   std::vector<int> strip_of(near.size(), -1);
+  std::unique_ptr<TopView> top;    // of the cluster, built when a strip needs it
   std::vector<std::uint8_t> mark;  // own_clay_pieces' scratch space
   std::vector<std::uint32_t> strip;
   int strips = 0;
@@ -314,6 +340,7 @@ void reclaim_leaked_strips(const Graph& near, const std::vector<Vec3f>& centres,
     }
     bool goes = along_to >= kStripMinAlongPairs && along_to >= kStripMinAlongShare * along_from;
     bool of_other_clay = false;       // goes by colour, to a part of a clay apart from its own
+    bool of_own_clay = false;         // stays by colour
     Vec3f from_rgb = part_rgb[from];  // less the strip
     if (!voxel_rgb.empty()) {
       Vec3f strip_rgb = Vec3f::Zero();
@@ -324,6 +351,11 @@ void reclaim_leaked_strips(const Graph& near, const std::vector<Vec3f>& centres,
       if (to_clay != from_clay) goes = to_clay;
       of_other_clay = to_clay && !from_clay &&
                       off_either_line(part_rgb[to], from_rgb) >= kStripTrimMinClaysApart;
+      of_own_clay = from_clay && !to_clay;
+    }
+    if (!goes && !of_own_clay) {
+      if (top == nullptr) top = std::make_unique<TopView>(centres, cluster);
+      goes = lies_along_in_top_view(*top, centres, strip, strip_of, strips, tag, to, from, slack);
     }
     ++strips;
     if (!goes) continue;
