@@ -126,6 +126,16 @@ constexpr double kPieceMinPairsPerVoxel = 0.1;
 // part they went to had 0.43–1.0 of its voxels with that part uphill (all but one 0.56 or more);
 // of the 3 moved wrongly, each all of its own part's sherd, 0.13 and 0.20 (165013, 171079) and
 // 0.88 (253051).
+// The rest of the region, hanging from the part itself, goes along only when it has the other part
+// uphill on that share of its voxels too. Where two sherds' faces meet as one region on both clays'
+// lines (tray 153054: 350 voxels, 192 of the part's own sherd), the piece hanging from the other
+// part is that part's face and the rest is the part's own (0.22 of it with the other part uphill).
+// Of the 38 moves that the last round's debug build printed with their pieces, the rests of the
+// regions moved rightly between two sherds' parts had 0.36–1.0 of their voxels with the other
+// part uphill, but for two small regions (989091, 143032: 57 and 70 voxels, 0.17 and 0.15) whose
+// rests hold their own part's sherd about half. The other rests now held back had 0.16–0.22 and
+// were mostly of their own part's sherd: 153054's, 22 of 25 voxels in 979057, and all of 253051's
+// strip, moved wrongly.
 constexpr double kFaceMinUphillShare = 0.3;
 constexpr double kRegionMaxPairsPerVoxel = 1.9;
 constexpr double kTopViewDecides = 1.5;
@@ -607,7 +617,17 @@ std::vector<std::vector<std::uint32_t>> faces_to_their_clay(
       const auto& piece = hanging->second;
       const auto below_best = std::count_if(piece.begin(), piece.end(),
                                             [&](std::uint32_t v) { return uphill_of[v] == best; });
-      if (static_cast<double>(below_best) >= kFaceMinUphillShare * piece.size()) {
+      if (static_cast<double>(below_best) < kFaceMinUphillShare * piece.size()) continue;
+      // The rest of the region goes along when it falls away from `best` as well: else it is the
+      // part's own face beside the other's (kFaceMinUphillShare).
+      for (auto v : piece) moved_to[v] = best;
+      std::size_t rest = 0, rest_below = 0;
+      for (auto v : region) {
+        if (moved_to[v] == best) continue;
+        ++rest;
+        rest_below += uphill_of[v] == best;
+      }
+      if (static_cast<double>(rest_below) >= kFaceMinUphillShare * rest) {
         for (auto v : region) moved_to[v] = best;
       }
     }

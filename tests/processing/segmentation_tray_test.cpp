@@ -738,7 +738,8 @@ INSTANTIATE_TEST_SUITE_P(
                       TrayOfRun{"OneAsTwo_OwnStripNotFallingFromTheNeighbour", 1067001, 1067013},
                       TrayOfRun{"PieceInTheNeighbour_AlongItsSherdInTheTopView", 983001, 983033},
                       TrayOfRun{"PieceInTheNeighbour_AlongItsSherdInTheTopView", 137001, 137009},
-                      TrayOfRun{"PieceInTheNeighbour_AlongItsSherdInTheTopView", 975001, 975076}),
+                      TrayOfRun{"PieceInTheNeighbour_AlongItsSherdInTheTopView", 975001, 975076},
+                      TrayOfRun{"OneAsTwo_OwnFaceBesideTheNeighboursFace", 153001, 153054}),
     case_name);
 
 // Whole narrow sherds kept apart beside a wider sherd of another hue (0.11 and 0.22 apart) whose
