@@ -490,6 +490,19 @@ constexpr double kLobeMinCoreShare = 2.0;
 // without it: 4 trays made right (143048, 153056, 163056, 173013), none wrong; on eight runs never
 // run before (353001 / 355001 / … / 367001) 1 made right (359017), none wrong.
 constexpr double kSmallCoreAcrossStep = 0.008;
+// A band's or small core's basin is the far side of a step inside its sherd or that sherd's
+// fracture face (its clay mixed with grey, on the clay's line to grey) — or a small sherd of its
+// own, which the colour split parts off again later only where its clay covers kClayMinMm2. So such
+// a basin joins no basin whose clay line its colour lies kSmallBasinMinOffClayLine or more off.
+// Measured with a debug build (every band's and small core's basin joined over 12 runs: 1, 1001,
+// 5001, …, 15001, 133001, …, 139001; 608 joins with their truth): of the 598 joined rightly, one
+// lay 0.027 off the line (a band holding 146 voxels of the other sherd) and the rest at most
+// 0.014; of the 10 joined wrongly, 5 lay 0.032–0.066 off, two of them left merged (221011,
+// 223030), the others parted by the colour split. Such a basin joins instead the basin it touches
+// most among those whose clay line it lies within kSmallCoreAcrossStep of, or stays apart: in
+// 231039 a far side of one sherd touched the other sherd a little more than its own (496 against
+// 445 neighbour pairs), and 221011's band touched a third sherd 0.027 off its line at 10 pairs.
+constexpr double kSmallBasinMinOffClayLine = 0.03;
 // The far side of a step inside a sherd lies along the rest of it across the step over its whole
 // length, and may touch it in 3-D only round the wall's ends. Where its end also touches another
 // sherd in 3-D, that contact can be the longer border, and the clay bound above does not part
@@ -835,12 +848,31 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
       for (auto v : cluster) basin_rgb[tag[v]] += voxel_rgb[v];
       steps = step_pairs(top_view(), centres, cluster, tag, joining, radius);
     }
+    // No far side or face of a sherd lies far off its clay's line: c joins `to` unless its colour
+    // lies kSmallBasinMinOffClayLine or more off it, else the basin it touches most among those
+    // whose clay line it lies on (within kSmallCoreAcrossStep), if any.
+    auto of_another_clay = [&](int c, int to) {
+      return !voxel_rgb.empty() &&
+             off_either_line(basin_rgb[c], basin_rgb[to]) >= kSmallBasinMinOffClayLine;
+    };
+    auto join_of_its_clay = [&](int c, int to) {
+      if (of_another_clay(c, to)) {
+        to = -1;
+        for (int q = 0; q < cores; ++q) {
+          if (q != c && border[c][q] > 0 &&
+              off_either_line(basin_rgb[c], basin_rgb[q]) < kSmallCoreAcrossStep &&
+              (to < 0 || border[c][q] > border[c][to]))
+            to = q;
+        }
+      }
+      if (to >= 0) group.join(c, to);
+    };
     for (int c = 0; c < cores; ++c) {
       if (!joining[c]) continue;
       const int longest = longest_border(c);
       const int across = steps.most_across.empty() ? -1 : steps.most_across[c];
       if (across < 0) {
-        group.join(c, longest);
+        join_of_its_clay(c, longest);
         continue;
       }
       const float off_touched = off_either_line(basin_rgb[c], basin_rgb[longest]);
@@ -860,7 +892,7 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
           continue;
         }
       }
-      group.join(c, to);
+      join_of_its_clay(c, to);
     }
   };
   // A lobe of its neighbour's clay is that sherd's own (see kLobeMinTopShare).

@@ -739,7 +739,9 @@ INSTANTIATE_TEST_SUITE_P(
                       TrayOfRun{"PieceInTheNeighbour_AlongItsSherdInTheTopView", 983001, 983033},
                       TrayOfRun{"PieceInTheNeighbour_AlongItsSherdInTheTopView", 137001, 137009},
                       TrayOfRun{"PieceInTheNeighbour_AlongItsSherdInTheTopView", 975001, 975076},
-                      TrayOfRun{"OneAsTwo_OwnFaceBesideTheNeighboursFace", 153001, 153054}),
+                      TrayOfRun{"OneAsTwo_OwnFaceBesideTheNeighboursFace", 153001, 153054},
+                      TrayOfRun{"TwoAsOne_SmallBasinOfAnotherClay", 221001, 221011},
+                      TrayOfRun{"TwoAsOne_SmallBasinOfAnotherClay", 223001, 223030}),
     case_name);
 
 // Whole narrow sherds kept apart beside a wider sherd of another hue (0.11 and 0.22 apart) whose
