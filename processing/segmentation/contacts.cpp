@@ -135,6 +135,24 @@ SlopesAcross slopes_across(TopView& top, const std::vector<Vec3f>& centres,
   return {slope_of(near_band[0]), slope_of(near_band[1])};
 }
 
+// Whether part b lies above part a (by `tag` among `among`, whose top view is `top`): most of a's
+// step pairs with b rise to b.
+bool lies_above(TopView& top, const std::vector<Vec3f>& centres,
+                const std::vector<std::uint32_t>& among, const std::vector<int>& tag, int a, int b,
+                double radius) {
+  std::size_t pairs = 0, rises = 0;
+  std::vector<int> found;
+  for (auto v : among) {
+    if (tag[v] != a) continue;
+    for_each_step_pair(top, centres, tag, v, radius, found, [&](std::uint32_t n) {
+      if (tag[n] != b) return;
+      ++pairs;
+      rises += centres[n].z() > centres[v].z();
+    });
+  }
+  return 2 * rises > pairs;
+}
+
 // Pairs (a, b) of parts (by the `borders` among them; core_rgb.size() of them) that are one
 // sherd's levels, judged by their borders and by the colours of their cores (`core_rgb`, sums) and
 // their widths (`width`, mm; `face_width` as a fracture face: infinite for a part that is none, a
@@ -466,11 +484,12 @@ std::vector<std::pair<int, int>> parts_without_neck(
 // right, 1 wrong, exact count 588 of 600 both. Without the sherd's-area exception, over the 80
 // runs: 17 made right, 9 wrong.
 // A whole small sherd of its neighbour's clay rises to a lobe too; like a small core's basin (see
-// kSmallSherdMaxStepBandMm2) a lobe's basin of half a sherd's area beside a wide core, neither
-// behind a step nor without a neck, stays apart. Measured with a debug build (every lobe joined on
-// 12 runs, 159001 / 177001 / … / 253001, with its truth): the 178 lobes of their own sherd had 49
-// or more voxels beside a step; two whole small sherds (193051, 271022) 13 and 26. Over the 80
-// runs, beside the binary without it: 193051, 271022 and 263064 made right, none wrong.
+// kSmallSherdMaxStepBandMm2) a lobe's basin of half a sherd's area beside a wide core, not without
+// a neck and not behind a step unless rising away from it, stays apart. Measured with a debug build
+// (every lobe joined on 12 runs, 159001 / 177001 / … / 253001, with its truth): the 178 lobes of
+// their own sherd had 49 or more voxels beside a step; two whole small sherds (193051, 271022) 13
+// and 26. Over the 80 runs, beside the binary without it: 193051, 271022 and 263064 made right,
+// none wrong.
 constexpr double kLobeMinTopShare = 0.8;
 constexpr double kLobeMinDynamicShare = 0.6;
 constexpr double kLobeMinCoreShare = 2.0;
@@ -808,9 +827,10 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
                             border[c].begin());
   };
   // The basins marked in `asked` that are whole small sherds touching a wide core's basin (see
-  // kSmallSherdMaxStepBandMm2): half min_own_basin_voxels or more, beside a wide core, neither
-  // behind a step nor without a neck.
-  auto small_sherds_among = [&](std::vector<std::uint8_t> asked) {
+  // kSmallSherdMaxStepBandMm2): half min_own_basin_voxels or more, beside a wide core, not without
+  // a neck, and not behind a step — for lobes (`lobes`), unless rising away from it
+  // (kSmallSherdMinLowerRise).
+  auto small_sherds_among = [&](std::vector<std::uint8_t> asked, bool lobes) {
     bool any = false;
     for (int c = 0; c < cores; ++c) {
       asked[c] = asked[c] && 2 * basin_size[c] >= sizes.min_own_basin_voxels &&
@@ -832,8 +852,15 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
       if (!asked[c]) continue;
       const int longest = longest_border(c);
       const double border_mm = border_length_mm(band[c][longest], band[longest][c], radius);
-      asked[c] = step_band[c] < sizes.max_small_sherd_step_band_voxels &&
-                 border_mm < kNoNeckMinBorderShare * width[c];
+      // Beside a step, the lower of the two rising away from it (see kSmallSherdMinLowerRise).
+      auto lower_rises_away = [&] {
+        const bool upper = lies_above(top_view(), centres, cluster, tag, c, longest, radius);
+        return slopes_across(top_view(), centres, cluster, tag, c, longest, upper, radius).lower >=
+               kSmallSherdMinLowerRise;
+      };
+      asked[c] =
+          border_mm < kNoNeckMinBorderShare * width[c] &&
+          (step_band[c] < sizes.max_small_sherd_step_band_voxels || (lobes && lower_rises_away()));
     }
     return asked;
   };
@@ -903,7 +930,7 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
       for (auto v : cluster) basin_rgb[tag[v]] += voxel_rgb[v];
     std::vector<std::uint8_t> lobe(cores, 0);
     for (int c = lobes_begin; c < deep_cores; ++c) lobe[c] = 1;
-    const auto small_sherd = small_sherds_among(lobe);
+    const auto small_sherd = small_sherds_among(lobe, true);
     for (int c = lobes_begin; c < deep_cores; ++c) {
       const int longest = longest_border(c);
       const bool own_clay = voxel_rgb.empty() ||
@@ -991,9 +1018,8 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
     const bool narrow_sherd = basin_size[c] >= sizes.min_own_basin_voxels && beside_wide_or_none(c);
     to_join[c] = border[c][longest_border(c)] > 0 && !narrow_sherd;
   }
-  // A small sherd's basin beside a wide core, neither behind a step nor without a neck, stays
-  // apart (see kSmallSherdMaxStepBandMm2).
-  const auto small_sherd = small_sherds_among(to_join);
+  // A small sherd's basin beside a wide core stays apart (see kSmallSherdMaxStepBandMm2).
+  const auto small_sherd = small_sherds_among(to_join, false);
   for (int c = 0; c < cores; ++c) to_join[c] = to_join[c] && !small_sherd[c];
   join_touched_or_across(to_join);
   if (stages != nullptr) append_parts(cluster, tag, group, cores, stages->small_cores);

@@ -741,7 +741,10 @@ INSTANTIATE_TEST_SUITE_P(
                       TrayOfRun{"PieceInTheNeighbour_AlongItsSherdInTheTopView", 975001, 975076},
                       TrayOfRun{"OneAsTwo_OwnFaceBesideTheNeighboursFace", 153001, 153054},
                       TrayOfRun{"TwoAsOne_SmallBasinOfAnotherClay", 221001, 221011},
-                      TrayOfRun{"TwoAsOne_SmallBasinOfAnotherClay", 223001, 223030}),
+                      TrayOfRun{"TwoAsOne_SmallBasinOfAnotherClay", 223001, 223030},
+                      TrayOfRun{"TwoAsOne_SmallSherdRisingFromTheStep", 193001, 193058},
+                      TrayOfRun{"TwoAsOne_SmallSherdRisingFromTheStep", 243001, 243062},
+                      TrayOfRun{"TwoAsOne_SmallSherdRisingFromTheStep", 253001, 253085}),
     case_name);
 
 // Whole narrow sherds kept apart beside a wider sherd of another hue (0.11 and 0.22 apart) whose
