@@ -69,90 +69,6 @@ StepBorders step_borders(const Graph& near, TopView& top, const std::vector<Vec3
   return borders;
 }
 
-// Slopes (rise over run) of two levels across the border between them, going from the upper.
-struct SlopesAcross {
-  double upper, lower;
-};
-
-// The slopes of two levels a and b (parts by `tag` among `among`, whose top view is `top`; b the
-// upper when `b_upper`) across the border between them (see kFallingLevelMaxSlope): each level's
-// is that of the plane through its voxels within kFallingLevelNearMm of the border (in the top
-// view), along the direction from the upper level's side of the border to the lower's (the
-// centres of the step pairs' voxels on either side). NaN for a level without one.
-SlopesAcross slopes_across(TopView& top, const std::vector<Vec3f>& centres,
-                           const std::vector<std::uint32_t>& among, const std::vector<int>& tag,
-                           int a, int b, bool b_upper, double radius) {
-  const int lower = b_upper ? a : b;
-  constexpr std::uint8_t kInBand = 1, kNearBand = 2;
-  std::vector<std::uint8_t> mark(centres.size(), 0);
-  std::vector<std::uint32_t> band;  // voxels of either level in a step pair with the other
-  std::vector<int> found;
-  auto add_to_band = [&](std::uint32_t v) {
-    if (!(mark[v] & kInBand)) mark[v] |= kInBand, band.push_back(v);
-  };
-  for (auto v : among) {
-    if (tag[v] != a) continue;
-    for_each_step_pair(top, centres, tag, v, radius, found, [&](std::uint32_t n) {
-      if (tag[n] == b) add_to_band(v), add_to_band(n);
-    });
-  }
-  // By side: [0] the upper level's, [1] the lower's.
-  Eigen::Vector2d band_sum[2] = {Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero()};
-  std::size_t band_count[2] = {0, 0};
-  std::vector<std::uint32_t> near_band[2];
-  for (auto v : band) {
-    const int side = tag[v] == lower;
-    band_sum[side] += centres[v].head<2>().cast<double>();
-    ++band_count[side];
-    top.search(centres[v], kFallingLevelNearMm, found);
-    for (auto f : found) {
-      const auto n = top.voxel_at[f];
-      if ((tag[n] != a && tag[n] != b) || (mark[n] & kNearBand)) continue;
-      mark[n] |= kNearBand;
-      near_band[tag[n] == lower].push_back(n);
-    }
-  }
-  if (band_count[0] == 0 || band_count[1] == 0) return {std::nan(""), std::nan("")};
-  const Eigen::Vector2d across =
-      (band_sum[1] / band_count[1] - band_sum[0] / band_count[0]).normalized();
-  // A level's slope along `across`; none (NaN) for too few voxels or a plane about as steep as a
-  // wall (normal.z near 0), which has no meaningful slope.
-  auto slope_of = [&](const std::vector<std::uint32_t>& voxels) {
-    if (voxels.size() < kFallingLevelMinPlaneVoxels) return std::nan("");
-    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-    for (auto v : voxels) mean += centres[v].cast<double>();
-    mean /= static_cast<double>(voxels.size());
-    Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
-    for (auto v : voxels) {
-      const Eigen::Vector3d d = centres[v].cast<double>() - mean;
-      scatter += d * d.transpose();
-    }
-    const Eigen::Vector3d normal =
-        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(scatter).eigenvectors().col(0);
-    if (std::abs(normal.z()) < kFallingLevelMinNormalZ) return std::nan("");
-    return -normal.head<2>().dot(across) / normal.z();
-  };
-  return {slope_of(near_band[0]), slope_of(near_band[1])};
-}
-
-// Whether part b lies above part a (by `tag` among `among`, whose top view is `top`): most of a's
-// step pairs with b rise to b.
-bool lies_above(TopView& top, const std::vector<Vec3f>& centres,
-                const std::vector<std::uint32_t>& among, const std::vector<int>& tag, int a, int b,
-                double radius) {
-  std::size_t pairs = 0, rises = 0;
-  std::vector<int> found;
-  for (auto v : among) {
-    if (tag[v] != a) continue;
-    for_each_step_pair(top, centres, tag, v, radius, found, [&](std::uint32_t n) {
-      if (tag[n] != b) return;
-      ++pairs;
-      rises += centres[n].z() > centres[v].z();
-    });
-  }
-  return 2 * rises > pairs;
-}
-
 // Pairs (a, b) of parts (by the `borders` among them; core_rgb.size() of them) that are one
 // sherd's levels, judged by their borders and by the colours of their cores (`core_rgb`, sums) and
 // their widths (`width`, mm; `face_width` as a fracture face: infinite for a part that is none, a
@@ -743,6 +659,78 @@ void append_parts(const std::vector<std::uint32_t>& cluster, const std::vector<i
 }
 
 }  // namespace
+
+SlopesAcross slopes_across(TopView& top, const std::vector<Vec3f>& centres,
+                           const std::vector<std::uint32_t>& among, const std::vector<int>& tag,
+                           int a, int b, bool b_upper, double radius) {
+  const int lower = b_upper ? a : b;
+  constexpr std::uint8_t kInBand = 1, kNearBand = 2;
+  std::vector<std::uint8_t> mark(centres.size(), 0);
+  std::vector<std::uint32_t> band;  // voxels of either level in a step pair with the other
+  std::vector<int> found;
+  auto add_to_band = [&](std::uint32_t v) {
+    if (!(mark[v] & kInBand)) mark[v] |= kInBand, band.push_back(v);
+  };
+  for (auto v : among) {
+    if (tag[v] != a) continue;
+    for_each_step_pair(top, centres, tag, v, radius, found, [&](std::uint32_t n) {
+      if (tag[n] == b) add_to_band(v), add_to_band(n);
+    });
+  }
+  // By side: [0] the upper level's, [1] the lower's.
+  Eigen::Vector2d band_sum[2] = {Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero()};
+  std::size_t band_count[2] = {0, 0};
+  std::vector<std::uint32_t> near_band[2];
+  for (auto v : band) {
+    const int side = tag[v] == lower;
+    band_sum[side] += centres[v].head<2>().cast<double>();
+    ++band_count[side];
+    top.search(centres[v], kFallingLevelNearMm, found);
+    for (auto f : found) {
+      const auto n = top.voxel_at[f];
+      if ((tag[n] != a && tag[n] != b) || (mark[n] & kNearBand)) continue;
+      mark[n] |= kNearBand;
+      near_band[tag[n] == lower].push_back(n);
+    }
+  }
+  if (band_count[0] == 0 || band_count[1] == 0) return {std::nan(""), std::nan("")};
+  const Eigen::Vector2d across =
+      (band_sum[1] / band_count[1] - band_sum[0] / band_count[0]).normalized();
+  // A level's slope along `across`; none (NaN) for too few voxels or a plane about as steep as a
+  // wall (normal.z near 0), which has no meaningful slope.
+  auto slope_of = [&](const std::vector<std::uint32_t>& voxels) {
+    if (voxels.size() < kFallingLevelMinPlaneVoxels) return std::nan("");
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (auto v : voxels) mean += centres[v].cast<double>();
+    mean /= static_cast<double>(voxels.size());
+    Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+    for (auto v : voxels) {
+      const Eigen::Vector3d d = centres[v].cast<double>() - mean;
+      scatter += d * d.transpose();
+    }
+    const Eigen::Vector3d normal =
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(scatter).eigenvectors().col(0);
+    if (std::abs(normal.z()) < kFallingLevelMinNormalZ) return std::nan("");
+    return -normal.head<2>().dot(across) / normal.z();
+  };
+  return {slope_of(near_band[0]), slope_of(near_band[1])};
+}
+
+bool lies_above(TopView& top, const std::vector<Vec3f>& centres,
+                const std::vector<std::uint32_t>& among, const std::vector<int>& tag, int a, int b,
+                double radius) {
+  std::size_t pairs = 0, rises = 0;
+  std::vector<int> found;
+  for (auto v : among) {
+    if (tag[v] != a) continue;
+    for_each_step_pair(top, centres, tag, v, radius, found, [&](std::uint32_t n) {
+      if (tag[n] != b) return;
+      ++pairs;
+      rises += centres[n].z() > centres[v].z();
+    });
+  }
+  return 2 * rises > pairs;
+}
 
 bool level_wall(std::vector<float>& heights, double max_mm, double max_spread) {
   if (heights.size() < kLevelMinStepPairs) return false;

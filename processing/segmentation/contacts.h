@@ -135,6 +135,26 @@ inline constexpr double kTouchingLevelMinBend = 0.4;
 bool level_wall(std::vector<float>& heights, double max_mm = kLevelStepMaxMm,
                 double max_spread = kLevelStepMaxSpread);
 
+// Slopes (rise over run) of two levels across the border between them, going from the upper.
+struct SlopesAcross {
+  double upper, lower;
+};
+
+// The slopes of two levels a and b (parts by `tag` among `among`, whose top view is `top`; b the
+// upper when `b_upper`) across the border between them (see kFallingLevelMaxSlope): each level's
+// is that of the plane through its voxels within kFallingLevelNearMm of the border (in the top
+// view), along the direction from the upper level's side of the border to the lower's (the
+// centres of the step pairs' voxels on either side). NaN for a level without one.
+SlopesAcross slopes_across(TopView& top, const std::vector<Vec3f>& centres,
+                           const std::vector<std::uint32_t>& among, const std::vector<int>& tag,
+                           int a, int b, bool b_upper, double radius);
+
+// Whether part b lies above part a (by `tag` among `among`, whose top view is `top`): most of a's
+// step pairs with b rise to b.
+bool lies_above(TopView& top, const std::vector<Vec3f>& centres,
+                const std::vector<std::uint32_t>& among, const std::vector<int>& tag, int a, int b,
+                double radius);
+
 // Two parts of sherd-sized cores that meet along a border about as long as the narrower of them
 // is wide — no neck between them — are one sherd that the erosion cut where it narrows a little (a
 // long rim strip, a lip band along a rim), when their cores share the clay's hue (closer than

@@ -28,7 +28,8 @@ struct Params {
   // raised edge of a leaning sherd), joins the sherd it borders in the top view in its clay; two
   // parts of one hue with no neck between them are one sherd; a part of several clays is split
   // by colour; a level of a sherd behind a step higher than the clustering distance joins it by
-  // the step and colour (a narrow band of its clay, or a wider level of its very hue); a sherd's
+  // the step and colour (a narrow band of its clay, a wider level of its very hue, or of its clay
+  // where the surface bends down across the border); a sherd's
   // fracture face strip, or a piece of it lying along it in the top view, that went to the sherd
   // it touches goes back by colour (and, where the colour fits both, by the side its slope
   // faces); and a part left narrower in the top view than any sherd lying on the plate shows (a

@@ -21,8 +21,9 @@ std::vector<std::vector<std::uint32_t>> join_narrow_parts(
 
 // `parts` (each inside one cluster; `cluster_of`: each voxel's cluster) with the levels of one
 // sherd that lie in different clusters joined: side by side in the top view across an even step,
-// the narrower a band and both of one clay, or both of one hue. The rules and their measurements:
-// at kLevelApartMaxWidthMm in top_view_joins.cpp.
+// the narrower a band and both of one clay, or both of one hue; or of one clay with the surface
+// bending down across the border. The rules and their measurements: at kLevelApartMaxWidthMm and
+// kBendingLevelApartMaxOffClayLine in top_view_joins.cpp.
 std::vector<std::vector<std::uint32_t>> join_levels_across_clusters(
     std::vector<std::vector<std::uint32_t>> parts, const std::vector<Vec3f>& centres,
     const std::vector<Vec3f>& voxel_rgb, const std::vector<int>& cluster_of, double radius,
