@@ -204,10 +204,15 @@ TopViewBorders top_view_borders(const std::vector<std::vector<std::uint32_t>>& p
 // hue as one sherd's levels (25011: 0.0058 apart, 25 and 28 mm wide); the 7 up to 16 mm lay
 // 0.038 or more off each other's line. The bounds of the levels inside a cluster (hues 0.03,
 // faces 0.02 off) merged three pairs on other runs, bands 13–15 mm wide 0.0082–0.0104 off
-// (trays 74, 7045, 23054), hence the tighter ones.
+// (trays 74, 7045, 23054), hence the tighter ones. The wall's spread (90th / 10th percentile) is
+// held to kLevelApartMaxSpread, a little under the levels' inside a cluster (kLevelStepMaxSpread):
+// with a debug build on the 80 runs (1, 1001, 5001, …, 15001; 133001, …, 275001; every pair these
+// rules joined, against the truth), the 212 pairs of one sherd had spreads of 1.10–1.76 and the one
+// pair of two sherds 1.84 (147094: a whole sherd 15.6 mm wide taken for its neighbour's face band).
 constexpr double kLevelApartMaxWidthMm = 16.0;
 constexpr double kLevelApartMaxHueDifference = 0.01;
 constexpr double kLevelApartFaceMaxOffClayLine = 0.004;
+constexpr double kLevelApartMaxSpread = 1.8;
 // Wider levels join too when their hues agree within kWideLevelApartMaxHueDifference: a sherd
 // whose surface falls away so steeply that the scan leaves a gap along the fall. Measured with a
 // debug build on the 80 runs (1, 1001, 5001, …, 15001; 133001, …, 275001; part pairs of different
@@ -431,7 +436,7 @@ std::vector<std::vector<std::uint32_t>> join_levels_across_clusters(
                                   kLevelApartMaxHueDifference, kLevelApartFaceMaxOffClayLine);
     const float hue_apart = (hue(colour[a]) - hue(colour[b])).norm();
     const bool one_hue = hue_apart < kWideLevelApartMaxHueDifference;
-    if (level_wall(heights) && (band || one_hue)) {
+    if (level_wall(heights, kLevelStepMaxMm, kLevelApartMaxSpread) && (band || one_hue)) {
       group.join(a, b);
       continue;
     }
