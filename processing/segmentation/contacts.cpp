@@ -658,6 +658,24 @@ void append_parts(const std::vector<std::uint32_t>& cluster, const std::vector<i
   }
 }
 
+// Whether part b lies above part a (by `tag` among `among`, whose top view is `top`): most of a's
+// step pairs with b rise to b.
+bool lies_above(TopView& top, const std::vector<Vec3f>& centres,
+                const std::vector<std::uint32_t>& among, const std::vector<int>& tag, int a, int b,
+                double radius) {
+  std::size_t pairs = 0, rises = 0;
+  std::vector<int> found;
+  for (auto v : among) {
+    if (tag[v] != a) continue;
+    for_each_step_pair(top, centres, tag, v, radius, found, [&](std::uint32_t n) {
+      if (tag[n] != b) return;
+      ++pairs;
+      rises += centres[n].z() > centres[v].z();
+    });
+  }
+  return 2 * rises > pairs;
+}
+
 }  // namespace
 
 SlopesAcross slopes_across(TopView& top, const std::vector<Vec3f>& centres,
@@ -716,20 +734,11 @@ SlopesAcross slopes_across(TopView& top, const std::vector<Vec3f>& centres,
   return {slope_of(near_band[0]), slope_of(near_band[1])};
 }
 
-bool lies_above(TopView& top, const std::vector<Vec3f>& centres,
-                const std::vector<std::uint32_t>& among, const std::vector<int>& tag, int a, int b,
-                double radius) {
-  std::size_t pairs = 0, rises = 0;
-  std::vector<int> found;
-  for (auto v : among) {
-    if (tag[v] != a) continue;
-    for_each_step_pair(top, centres, tag, v, radius, found, [&](std::uint32_t n) {
-      if (tag[n] != b) return;
-      ++pairs;
-      rises += centres[n].z() > centres[v].z();
-    });
-  }
-  return 2 * rises > pairs;
+SlopesAcross slopes_across(TopView& top, const std::vector<Vec3f>& centres,
+                           const std::vector<std::uint32_t>& among, const std::vector<int>& tag,
+                           int a, int b, double radius) {
+  return slopes_across(top, centres, among, tag, a, b,
+                       lies_above(top, centres, among, tag, a, b, radius), radius);
 }
 
 bool level_wall(std::vector<float>& heights, double max_mm, double max_spread) {
@@ -842,8 +851,7 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
       const double border_mm = border_length_mm(band[c][longest], band[longest][c], radius);
       // Beside a step, the lower of the two rising away from it (see kSmallSherdMinLowerRise).
       auto lower_rises_away = [&] {
-        const bool upper = lies_above(top_view(), centres, cluster, tag, c, longest, radius);
-        return slopes_across(top_view(), centres, cluster, tag, c, longest, upper, radius).lower >=
+        return slopes_across(top_view(), centres, cluster, tag, c, longest, radius).lower >=
                kSmallSherdMinLowerRise;
       };
       asked[c] =

@@ -149,11 +149,10 @@ SlopesAcross slopes_across(TopView& top, const std::vector<Vec3f>& centres,
                            const std::vector<std::uint32_t>& among, const std::vector<int>& tag,
                            int a, int b, bool b_upper, double radius);
 
-// Whether part b lies above part a (by `tag` among `among`, whose top view is `top`): most of a's
-// step pairs with b rise to b.
-bool lies_above(TopView& top, const std::vector<Vec3f>& centres,
-                const std::vector<std::uint32_t>& among, const std::vector<int>& tag, int a, int b,
-                double radius);
+// The same, the upper level being the one that most of the other's step pairs with it rise to.
+SlopesAcross slopes_across(TopView& top, const std::vector<Vec3f>& centres,
+                           const std::vector<std::uint32_t>& among, const std::vector<int>& tag,
+                           int a, int b, double radius);
 
 // Two parts of sherd-sized cores that meet along a border about as long as the narrower of them
 // is wide — no neck between them — are one sherd that the erosion cut where it narrows a little (a

@@ -415,8 +415,7 @@ std::vector<std::vector<std::uint32_t>> join_levels_across_clusters(
       for (auto v : parts[p]) tag[v] = p;
     }
     TopView top(centres, among);
-    const bool b_upper = lies_above(top, centres, among, tag, a, b, radius);
-    const SlopesAcross slopes = slopes_across(top, centres, among, tag, a, b, b_upper, radius);
+    const SlopesAcross slopes = slopes_across(top, centres, among, tag, a, b, radius);
     for (auto v : among) tag[v] = -1;
     // Comparisons with NaN are false: a level without a slope shows no bend.
     return slopes.lower <= kBendingLevelApartMaxLowerSlope &&
