@@ -17,8 +17,8 @@ float off_clay_line(const Vec3f& clay, const Vec3f& face) {
 }
 
 bool fracture_face_of(const Vec3f& clay_rgb, const Vec3f& face_rgb, double face_width_mm,
-                      double max_off_clay_line) {
-  return face_width_mm <= kFacePartMaxWidthMm && greyer(hue(face_rgb), hue(clay_rgb)) &&
+                      double max_off_clay_line, double max_face_width_mm) {
+  return face_width_mm <= max_face_width_mm && greyer(hue(face_rgb), hue(clay_rgb)) &&
          off_clay_line(clay_rgb, face_rgb) < max_off_clay_line;
 }
 
@@ -127,10 +127,10 @@ std::vector<Vec3f> colour_sums(const std::vector<std::vector<std::uint32_t>>& pa
 }
 
 bool of_one_clay(const Vec3f& a_rgb, double a_width_mm, const Vec3f& b_rgb, double b_width_mm,
-                 double same_hue, double face_off_clay_line) {
+                 double same_hue, double face_off_clay_line, double max_face_width_mm) {
   return (hue(a_rgb) - hue(b_rgb)).norm() < same_hue ||
-         fracture_face_of(b_rgb, a_rgb, a_width_mm, face_off_clay_line) ||
-         fracture_face_of(a_rgb, b_rgb, b_width_mm, face_off_clay_line);
+         fracture_face_of(b_rgb, a_rgb, a_width_mm, face_off_clay_line, max_face_width_mm) ||
+         fracture_face_of(a_rgb, b_rgb, b_width_mm, face_off_clay_line, max_face_width_mm);
 }
 
 float face_offset_of(const Eigen::Vector2f& clay, const Eigen::Vector2f& h) {

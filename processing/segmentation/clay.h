@@ -60,8 +60,10 @@ inline constexpr double kLevelFaceMaxOffClayLine = 0.02;
 
 // Two parts (colour sums, widths in mm) show one sherd's clay: their hues closer than
 // `same_hue`, or one is the other's fracture face (within `face_off_clay_line` of the line).
+// A face may be up to `max_face_width_mm` wide.
 bool of_one_clay(const Vec3f& a_rgb, double a_width_mm, const Vec3f& b_rgb, double b_width_mm,
-                 double same_hue, double face_off_clay_line);
+                 double same_hue, double face_off_clay_line,
+                 double max_face_width_mm = kFacePartMaxWidthMm);
 
 // A part holding sherds of different clays is split by colour: a narrow or stepped sherd against
 // a larger one that the erosion left no core of its own, or two sherds touching along a contact

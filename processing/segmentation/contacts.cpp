@@ -95,12 +95,20 @@ std::vector<std::pair<int, int>> levels_of_one_sherd(
       const bool long_border = border_mm >= kLevelMinBorderShare * std::min(width[a], width[b]);
       const bool one_clay = of_one_clay(core_rgb[a], face_width[a], core_rgb[b], face_width[b],
                                         kLevelMaxHueDifference, kLevelFaceMaxOffClayLine);
+      const bool wide_face =
+          !one_clay &&
+          of_one_clay(core_rgb[a], face_width[a], core_rgb[b], face_width[b],
+                      kLevelMaxHueDifference, kLevelFaceMaxOffClayLine, kLevelWideFaceMaxWidthMm);
       const bool kept_basin = std::isinf(face_width[a]) || std::isinf(face_width[b]);
       const bool b_upper = 2 * borders.rises[a][b] > heights.size();
       const bool wider_upper = b_upper == (width[b] > width[a]);
-      if (!(apart || touching) || !long_border || !one_clay || (kept_basin && !wider_upper))
+      if (!(apart || touching) || !long_border || !(one_clay || wide_face) ||
+          (kept_basin && !wider_upper))
         continue;
       if (!level_wall(heights, kFallingLevelStepMaxMm, kFallingLevelStepMaxSpread)) continue;
+      // Comparisons with NaN are false: a level without a slope shows neither.
+      const auto slopes = slopes_across(top, centres, among, tag, a, b, b_upper, radius);
+      if (wide_face && !(slopes.lower <= kOffClayLevelMaxSlope)) continue;
       const float off_line = off_either_line(core_rgb[a], core_rgb[b]);
       const bool close_clay = off_line < kLevelCloseClayMaxOffClayLine;
       const bool even_wall = level_wall(heights);
@@ -109,8 +117,6 @@ std::vector<std::pair<int, int>> levels_of_one_sherd(
         continue;
       }
       if (touching && off_line >= kTouchingLevelMaxOffClayLine) continue;
-      // Comparisons with NaN are false: a level without a slope shows neither.
-      const auto slopes = slopes_across(top, centres, among, tag, a, b, b_upper, radius);
       if (touching) {
         if (slopes.upper - slopes.lower >= kTouchingLevelMinBend) levels.emplace_back(a, b);
         continue;

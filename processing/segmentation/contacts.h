@@ -107,6 +107,20 @@ inline constexpr double kFallingLevelMinNormalZ = 0.1;
 // 991001) and 531065 (501001 / … / 531001, not looked at) made right, none wrong.
 inline constexpr double kLevelCloseClayMaxOffClayLine = 0.0055;
 inline constexpr double kOffClayLevelMaxSlope = -0.3;
+// A level up to kLevelWideFaceMaxWidthMm wide (rather than kFacePartMaxWidthMm, clay.h) is its
+// sherd's fracture face where it falls away from the other level at kOffClayLevelMaxSlope or
+// steeper: a face slopes off its sherd's surface, and a sherd lying beside or on another runs on
+// flat or rises. Measured with a debug build (every pair of parts judged as levels, with its truth
+// and both levels' slopes) over 80 runs of 100 trays (1 / 1001 / 5001 / … / 15001, 133001 /
+// 135001 / … / 275001): of the pairs refused by their colours alone, their cores within
+// kLevelFaceMaxOffClayLine of one line, 22 were one sherd's levels and 21 two sherds'. Of one
+// sherd's with the narrower part 16–18.2 mm wide (13 pairs), 9 fell away at −0.69…−0.31 (145052
+// left split), the rest at −0.22…−0.14; two sherds' falling at −0.3 or steeper had narrower parts
+// 19.6 mm wide or wider, and the four whose narrower part was 16.3–18.5 mm wide ran on or rose
+// (−0.06…0.63; 185022's, 16.3 mm, joined without the slope test). Beside the binary before:
+// 145052 made right, no other tray moved over the 80 runs; on 16 runs never run before (1321001 /
+// 1323001 / … / 1351001) none moved.
+inline constexpr double kLevelWideFaceMaxWidthMm = 18.0;
 
 // Levels that touch in 3-D beside the step more than kLevelMaxContactShare allows, up to
 // kTouchingLevelMaxContactShare (a step fading out along the border, the wall seen where it is
