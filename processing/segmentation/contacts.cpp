@@ -106,17 +106,22 @@ std::vector<std::pair<int, int>> levels_of_one_sherd(
           (kept_basin && !wider_upper))
         continue;
       if (!level_wall(heights, kFallingLevelStepMaxMm, kFallingLevelStepMaxSpread)) continue;
-      // Comparisons with NaN are false: a level without a slope shows neither.
-      const auto slopes = slopes_across(top, centres, among, tag, a, b, b_upper, radius);
-      if (wide_face && !(slopes.lower <= kOffClayLevelMaxSlope)) continue;
       const float off_line = off_either_line(core_rgb[a], core_rgb[b]);
       const bool close_clay = off_line < kLevelCloseClayMaxOffClayLine;
       const bool even_wall = level_wall(heights);
-      if (apart && even_wall && close_clay) {
+      const bool behind_level_wall = apart && even_wall && close_clay;
+      if (behind_level_wall && !wide_face) {  // the common case: no slopes needed
         levels.emplace_back(a, b);
         continue;
       }
       if (touching && off_line >= kTouchingLevelMaxOffClayLine) continue;
+      // Comparisons with NaN are false: a level without a slope shows neither.
+      const auto slopes = slopes_across(top, centres, among, tag, a, b, b_upper, radius);
+      if (wide_face && !(slopes.lower <= kOffClayLevelMaxSlope)) continue;
+      if (behind_level_wall) {
+        levels.emplace_back(a, b);
+        continue;
+      }
       if (touching) {
         if (slopes.upper - slopes.lower >= kTouchingLevelMinBend) levels.emplace_back(a, b);
         continue;
