@@ -349,12 +349,28 @@ std::vector<std::vector<std::size_t>> border_bands(const Graph& near,
 // 931001 / … / 959001) 2 made right (939071, 945071), none wrong.
 constexpr double kFaceMaxLengthPerBorder = 2.5;
 
+// A fracture face meets its sherd's surface at a crease: across the border the face stands steep
+// or the surface falls away to it. A whole sherd whose colour lies near another's clay line, lying
+// beside it at about its height, runs on level with it. So where both parts run within
+// kFlatFaceMaxSlope of level across the border (their slopes as the levels' rule measures them,
+// see kFallingLevelMaxSlope), a part stands as the other's face only along a border
+// kFlatFaceMinBorderShare × the narrower part's width or longer. Measured with a debug build
+// (every pair joined as a face, with its truth and both slopes, over the 80 runs named above):
+// the faces of their own sherd that ran level (both slopes within ±0.27) bordered it along
+// 4.9–18.7 × their width; the whole sherds taken for a face that ran level, 0.71–3.48 × (231041,
+// 195011, 13034; slopes up to 0.26). One sherd's faces along shorter borders had a slope of 0.34 or
+// steeper (211086, 167015).
+constexpr double kFlatFaceMaxSlope = 0.3;
+constexpr double kFlatFaceMinBorderShare = 4.0;
+
 // Pairs (a, b) of parts (by `tag`, widths `width` and `face_width` as for levels_of_one_sherd) with
-// no neck between them, among the voxels `among` of the parts marked in `judged`; voxels `leaked`
-// to another basin (leaked_to, when given) are no part of a border. A pair whose surface runs on
-// across the border (by its step `borders`, see kSmoothMaxStepShare) needs a shorter one.
+// no neck between them, among the voxels `among` of the parts marked in `judged` (whose top view
+// is `top`); voxels `leaked` to another basin (leaked_to, when given) are no part of a border. A
+// pair whose surface runs on across the border (by its step `borders`, see kSmoothMaxStepShare)
+// needs a shorter one.
 std::vector<std::pair<int, int>> parts_without_neck(
-    const Graph& near, const std::vector<std::uint32_t>& among, const std::vector<int>& tag,
+    const Graph& near, TopView& top, const std::vector<Vec3f>& centres,
+    const std::vector<std::uint32_t>& among, const std::vector<int>& tag,
     const std::vector<double>& width, const std::vector<double>& face_width,
     const std::vector<std::uint8_t>& judged, const std::vector<int>* leaked,
     const std::vector<Vec3f>& core_rgb, const StepBorders& borders, double radius) {
@@ -378,11 +394,19 @@ std::vector<std::pair<int, int>> parts_without_neck(
       };
       const bool one_clay = of_one_clay(core_rgb[a], as_face(a), core_rgb[b], as_face(b),
                                         kNoNeckMaxHueDifference, kFaceMaxOffClayLine);
-      const bool smooth =
-          borders.heights[a][b].size() <= kSmoothMaxStepShare * borders.contacts[a][b] &&
-          (hue(core_rgb[a]) - hue(core_rgb[b])).norm() < kNoNeckMaxHueDifference;
+      const auto& heights = borders.heights[a][b];
+      const bool one_hue = (hue(core_rgb[a]) - hue(core_rgb[b])).norm() < kNoNeckMaxHueDifference;
+      const bool smooth = heights.size() <= kSmoothMaxStepShare * borders.contacts[a][b] && one_hue;
       const double least_share = smooth ? kSmoothMinBorderShare : kNoNeckMinBorderShare;
-      if (border_mm >= least_share * narrower_mm && one_clay) pairs.emplace_back(a, b);
+      if (border_mm < least_share * narrower_mm || !one_clay) continue;
+      if (!one_hue && border_mm < kFlatFaceMinBorderShare * narrower_mm) {  // joined as a face
+        const auto slopes = slopes_across(top, centres, among, tag, a, b,
+                                          2 * borders.rises[a][b] > heights.size(), radius);
+        if (std::abs(slopes.upper) < kFlatFaceMaxSlope &&
+            std::abs(slopes.lower) < kFlatFaceMaxSlope)
+          continue;
+      }
+      pairs.emplace_back(a, b);
     }
   }
   return pairs;
@@ -1055,12 +1079,12 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
       group.join(a, b);
     // Leaving out leaked voxels only shortens borders, so they are looked for (two searches over
     // the cluster) only where a pair would join without them.
-    auto no_neck = parts_without_neck(near, judged, tag, width, face_width, judged_part, nullptr,
-                                      core_rgb, borders, radius);
+    auto no_neck = parts_without_neck(near, judged_top, centres, judged, tag, width, face_width,
+                                      judged_part, nullptr, core_rgb, borders, radius);
     if (!no_neck.empty()) {
       const auto leaked = leaked_to(near, centres, judged, seeds, tag, judged_part, erosion);
-      no_neck = parts_without_neck(near, judged, tag, width, face_width, judged_part, &leaked,
-                                   core_rgb, borders, radius);
+      no_neck = parts_without_neck(near, judged_top, centres, judged, tag, width, face_width,
+                                   judged_part, &leaked, core_rgb, borders, radius);
     }
     for (auto [a, b] : no_neck) group.join(a, b);
   }

@@ -616,6 +616,10 @@ std::string case_name(const ::testing::TestParamInfo<TrayOfRun>& info) {
 // tray 145052, found as two before. (The band of TwoAsOne_WideBandBehindAHighStep's tray 185022,
 // 16.3 mm wide and 0.0015 off its neighbour's line, runs on flat beside it, slope 0.01: joined as
 // a face without that test.)
+// A whole sherd whose colour lies near another's clay line (greyer), lying beside it at about its
+// height, both running level across their border (slopes within ±0.26) along 0.71–3.48 × the
+// narrower one's width, taken for its fracture face: sherds 2 and 9 of seed 13001's tray 13034, 2
+// and 17 of 195001's 195011, 3 and 7 of 231001's 231041, each found as one before.
 class FormerlyFailingTray : public ::testing::TestWithParam<TrayOfRun> {};
 
 TEST_P(FormerlyFailingTray, EachSherdIsFoundOnceAndWhole) {
@@ -763,7 +767,10 @@ INSTANTIATE_TEST_SUITE_P(
                       TrayOfRun{"OneAsTwo_LevelsInTwoClustersBendingDown", 261001, 261066},
                       TrayOfRun{"OneAsTwo_LevelsInTwoClustersBendingDown", 269001, 269041},
                       TrayOfRun{"TwoAsOne_BandInAnotherClusterBehindAnUnevenStep", 147001, 147094},
-                      TrayOfRun{"OneAsTwo_WideFaceFallingAway", 145001, 145052}),
+                      TrayOfRun{"OneAsTwo_WideFaceFallingAway", 145001, 145052},
+                      TrayOfRun{"TwoAsOne_WholeSherdRunningLevelBesideIt", 13001, 13034},
+                      TrayOfRun{"TwoAsOne_WholeSherdRunningLevelBesideIt", 195001, 195011},
+                      TrayOfRun{"TwoAsOne_WholeSherdRunningLevelBesideIt", 231001, 231041}),
     case_name);
 
 // Whole narrow sherds kept apart beside a wider sherd of another hue (0.11 and 0.22 apart) whose
@@ -776,6 +783,18 @@ TEST(NarrowSherdKeptApart, IsNoFractureFaceOfItsNeighbour) {
   // neighbour's precision 0.87) until faces meeting at a contact were split
   // (OneAsTwo_FacesMeeting…).
   expect_bench_tray_found(171001, 171079, 0.9, 0.9);
+}
+
+// A sherd's fracture face, greyer than its surface (hues 0.06–0.18 apart), bordering it without a
+// neck along only 1.47–2.29 × the face's width, but not level with it across the border: the face
+// falls away from the surface (slope −1.18 beside 0.19: sherd 3 of seed 221001's tray 221038;
+// −3.36 beside −0.45: sherd 13 of 275001's 275042) or the surface rises from the face (1.04
+// beside −0.12: sherd 1 of 273001's 273095). A build without the slope test, refusing every face
+// along a border shorter than kFlatFaceMinBorderShare × its width, split all three.
+TEST(FaceSlopingOffItsSherd, JoinsItAlongAShortBorder) {
+  expect_bench_tray_found(221001, 221038, 0.9, 0.9);
+  expect_bench_tray_found(273001, 273095, 0.9, 0.9);
+  expect_bench_tray_found(275001, 275042, 0.9, 0.9);
 }
 
 // Strips of a sherd's fracture face that the watershed left in the neighbour's part, apart from it
