@@ -359,7 +359,10 @@ constexpr double kFaceMaxLengthPerBorder = 2.5;
 // the faces of their own sherd that ran level (both slopes within ±0.27) bordered it along
 // 4.9–18.7 × their width; the whole sherds taken for a face that ran level, 0.71–3.48 × (231041,
 // 195011, 13034; slopes up to 0.26). One sherd's faces along shorter borders had a slope of 0.34 or
-// steeper (211086, 167015).
+// steeper (211086, 167015). Over the 80 runs, beside the binary without it: those three trays made
+// right, no other tray's figures moved; on 16 runs never run before (1353001 / 1355001 / … /
+// 1383001) no tray moved. Refusing every face along so short a border, whatever its slopes, made
+// 205008 right too but split 221038, 273095 and 275042 (faces sloping off along 1.47–2.29 ×).
 constexpr double kFlatFaceMaxSlope = 0.3;
 constexpr double kFlatFaceMinBorderShare = 4.0;
 
