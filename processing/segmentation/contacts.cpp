@@ -40,6 +40,8 @@ struct StepBorders {
   std::vector<std::vector<std::vector<float>>> heights;
   std::vector<std::vector<std::size_t>> rises;
   std::vector<std::vector<std::size_t>> band;
+  // Whether b is the upper level of a and b: most of a's step pairs with it rise to b.
+  bool b_upper(int a, int b) const { return 2 * rises[a][b] > heights[a][b].size(); }
 };
 StepBorders step_borders(const Graph& near, TopView& top, const std::vector<Vec3f>& centres,
                          const std::vector<std::uint32_t>& among, const std::vector<int>& tag,
@@ -100,7 +102,7 @@ std::vector<std::pair<int, int>> levels_of_one_sherd(
           of_one_clay(core_rgb[a], face_width[a], core_rgb[b], face_width[b],
                       kLevelMaxHueDifference, kLevelFaceMaxOffClayLine, kLevelWideFaceMaxWidthMm);
       const bool kept_basin = std::isinf(face_width[a]) || std::isinf(face_width[b]);
-      const bool b_upper = 2 * borders.rises[a][b] > heights.size();
+      const bool b_upper = borders.b_upper(a, b);
       const bool wider_upper = b_upper == (width[b] > width[a]);
       if (!(apart || touching) || !long_border || !(one_clay || wide_face) ||
           (kept_basin && !wider_upper))
@@ -403,8 +405,8 @@ std::vector<std::pair<int, int>> parts_without_neck(
       const double least_share = smooth ? kSmoothMinBorderShare : kNoNeckMinBorderShare;
       if (border_mm < least_share * narrower_mm || !one_clay) continue;
       if (!one_hue && border_mm < kFlatFaceMinBorderShare * narrower_mm) {  // joined as a face
-        const auto slopes = slopes_across(top, centres, among, tag, a, b,
-                                          2 * borders.rises[a][b] > heights.size(), radius);
+        const auto slopes =
+            slopes_across(top, centres, among, tag, a, b, borders.b_upper(a, b), radius);
         if (std::abs(slopes.upper) < kFlatFaceMaxSlope &&
             std::abs(slopes.lower) < kFlatFaceMaxSlope)
           continue;
