@@ -865,12 +865,15 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
   };
   // The basins marked in `asked` that are whole small sherds touching a wide core's basin (see
   // kSmallSherdMaxStepBandMm2): half min_own_basin_voxels or more, beside a wide core, not without
-  // a neck, and not behind a step — for lobes (`lobes`), unless rising away from it
-  // (kSmallSherdMinLowerRise).
-  auto small_sherds_among = [&](std::vector<std::uint8_t> asked, bool lobes) {
+  // a neck, and not behind a step — for lobes, unless rising away from it
+  // (kSmallSherdMinLowerRise); band cores' basins of a sherd's area, not along a step
+  // (kBandSherdMaxStepBandShare).
+  enum class Asked { kSmallCores, kLobes, kBands };
+  auto small_sherds_among = [&](std::vector<std::uint8_t> asked, Asked kind) {
     bool any = false;
     for (int c = 0; c < cores; ++c) {
-      asked[c] = asked[c] && 2 * basin_size[c] >= sizes.min_own_basin_voxels &&
+      const std::size_t area = kind == Asked::kBands ? basin_size[c] : 2 * basin_size[c];
+      asked[c] = asked[c] && area >= sizes.min_own_basin_voxels &&
                  core_size[longest_border(c)] >= sizes.min_wide_core_voxels;
       any |= asked[c] != 0;
     }
@@ -894,9 +897,12 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
         return slopes_across(top_view(), centres, cluster, tag, c, longest, radius).lower >=
                kSmallSherdMinLowerRise;
       };
-      asked[c] =
-          border_mm < kNoNeckMinBorderShare * width[c] &&
-          (step_band[c] < sizes.max_small_sherd_step_band_voxels || (lobes && lower_rises_away()));
+      const bool behind_step =
+          kind == Asked::kBands
+              ? step_band[c] >= kBandSherdMaxStepBandShare * basin_size[c]
+              : step_band[c] >= sizes.max_small_sherd_step_band_voxels &&
+                    !(kind == Asked::kLobes && lower_rises_away());
+      asked[c] = border_mm < kNoNeckMinBorderShare * width[c] && !behind_step;
     }
     return asked;
   };
@@ -966,7 +972,7 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
       for (auto v : cluster) basin_rgb[tag[v]] += voxel_rgb[v];
     std::vector<std::uint8_t> lobe(cores, 0);
     for (int c = lobes_begin; c < deep_cores; ++c) lobe[c] = 1;
-    const auto small_sherd = small_sherds_among(lobe, true);
+    const auto small_sherd = small_sherds_among(lobe, Asked::kLobes);
     for (int c = lobes_begin; c < deep_cores; ++c) {
       const int longest = longest_border(c);
       const bool own_clay = voxel_rgb.empty() ||
@@ -979,11 +985,13 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
     for (auto v : cluster) tag[v] = group.root(tag[v]);
   }
   // Band cores' basins join next (see kBandCoreShare), so that the shallow cores are judged by
-  // the basins they then have.
+  // the basins they then have; a narrow sherd's stays apart (kBandSherdMaxStepBandShare).
   if (cores > shallow_end) {
     measure_basins();
     std::vector<std::uint8_t> joining(cores, 0);
     for (int c = shallow_end; c < cores; ++c) joining[c] = border[c][longest_border(c)] > 0;
+    const auto band_sherd = small_sherds_among(joining, Asked::kBands);
+    for (int c = shallow_end; c < cores; ++c) joining[c] = joining[c] && !band_sherd[c];
     join_touched_or_across(joining);
     for (auto v : cluster) tag[v] = group.root(tag[v]);
   }
@@ -1055,7 +1063,7 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
     to_join[c] = border[c][longest_border(c)] > 0 && !narrow_sherd;
   }
   // A small sherd's basin beside a wide core stays apart (see kSmallSherdMaxStepBandMm2).
-  const auto small_sherd = small_sherds_among(to_join, false);
+  const auto small_sherd = small_sherds_among(to_join, Asked::kSmallCores);
   for (int c = 0; c < cores; ++c) to_join[c] = to_join[c] && !small_sherd[c];
   join_touched_or_across(to_join);
   if (stages != nullptr) append_parts(cluster, tag, group, cores, stages->small_cores);

@@ -620,6 +620,10 @@ std::string case_name(const ::testing::TestParamInfo<TrayOfRun>& info) {
 // height, both running level across their border (slopes within ±0.26) along 0.71–3.48 × the
 // narrower one's width, taken for its fracture face: sherds 2 and 9 of seed 13001's tray 13034, 2
 // and 17 of 195001's 195011, 3 and 7 of 231001's 231041, each found as one before.
+// A whole sherd 7 mm wide, too narrow to keep more than a band core, touching a wider sherd in 3-D
+// at its end (4 neighbour pairs, a border 0.10 × its width) and lying beside it across a step for
+// only 60 of its 1,034 voxels: joined to it as the far side of that sherd's step (sherds 12 and
+// 14 of seed 227001's tray 227048, found as one before).
 class FormerlyFailingTray : public ::testing::TestWithParam<TrayOfRun> {};
 
 TEST_P(FormerlyFailingTray, EachSherdIsFoundOnceAndWhole) {
@@ -770,7 +774,8 @@ INSTANTIATE_TEST_SUITE_P(
                       TrayOfRun{"OneAsTwo_WideFaceFallingAway", 145001, 145052},
                       TrayOfRun{"TwoAsOne_WholeSherdRunningLevelBesideIt", 13001, 13034},
                       TrayOfRun{"TwoAsOne_WholeSherdRunningLevelBesideIt", 195001, 195011},
-                      TrayOfRun{"TwoAsOne_WholeSherdRunningLevelBesideIt", 231001, 231041}),
+                      TrayOfRun{"TwoAsOne_WholeSherdRunningLevelBesideIt", 231001, 231041},
+                      TrayOfRun{"TwoAsOne_NarrowBandSherdTouchingAtItsEnd", 227001, 227048}),
     case_name);
 
 // Whole narrow sherds kept apart beside a wider sherd of another hue (0.11 and 0.22 apart) whose
