@@ -6,15 +6,13 @@
 
 namespace sherd::segmentation::detail {
 
-namespace {
-
-// How far the hue of `face` lies from the hues of `clay` mixed with grey (the segment from
-// hue(clay) to grey's (1, 1), a little beyond clay's end for noise).
 float off_clay_line(const Vec3f& clay, const Vec3f& face) {
   const Eigen::Vector2f c = hue(clay), to_grey = Eigen::Vector2f(1.0f, 1.0f) - c;
   const float t = std::clamp((hue(face) - c).dot(to_grey) / to_grey.squaredNorm(), -0.1f, 1.0f);
   return (hue(face) - c - t * to_grey).norm();
 }
+
+namespace {
 
 bool fracture_face_of(const Vec3f& clay_rgb, const Vec3f& face_rgb, double face_width_mm,
                       double max_off_clay_line, double max_face_width_mm) {

@@ -21,6 +21,10 @@ Eigen::Vector2f hue(const Vec3f& rgb);
 // face shows it.
 bool greyer(const Eigen::Vector2f& h, const Eigen::Vector2f& clay);
 
+// How far the hue of `face` (a colour sum) lies from the hues of `clay` mixed with grey: the
+// segment from hue(clay) to grey's (1, 1), a little beyond clay's end for noise.
+float off_clay_line(const Vec3f& clay, const Vec3f& face);
+
 // How far two parts' colours (sums) lie off each other's clay line: the lesser of the two ways,
 // as either may be the clay and the other its fracture face.
 float off_either_line(const Vec3f& a, const Vec3f& b);

@@ -897,11 +897,10 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
         return slopes_across(top_view(), centres, cluster, tag, c, longest, radius).lower >=
                kSmallSherdMinLowerRise;
       };
-      const bool behind_step =
-          kind == Asked::kBands
-              ? step_band[c] >= kBandSherdMaxStepBandShare * basin_size[c]
-              : step_band[c] >= sizes.max_small_sherd_step_band_voxels &&
-                    !(kind == Asked::kLobes && lower_rises_away());
+      const bool behind_step = kind == Asked::kBands
+                                   ? step_band[c] >= kBandSherdMaxStepBandShare * basin_size[c]
+                                   : step_band[c] >= sizes.max_small_sherd_step_band_voxels &&
+                                         !(kind == Asked::kLobes && lower_rises_away());
       asked[c] = border_mm < kNoNeckMinBorderShare * width[c] && !behind_step;
     }
     return asked;
@@ -1118,11 +1117,13 @@ std::vector<std::vector<std::uint32_t>> join_across_unseen_walls(
   const auto large_voxels = static_cast<std::size_t>(kWallLargePartMm2 / (leaf * leaf));
   std::vector<std::uint8_t> cored(n_parts, 0);
   std::vector<int> narrow;
+  std::vector<double> width(n_parts, 0.0);  // twice the deepest voxel's distance from the boundary
   for (int p = 0; p < n_parts; ++p) {
     std::size_t core = 0, shallow_core = 0;
     for (auto v : parts[p]) {
       core += depth[v] >= erosion;
       shallow_core += depth[v] >= kShallowCoreShare * erosion;
+      width[p] = std::max(width[p], 2.0 * depth[v]);
     }
     cored[p] = core >= sizes.min_core_voxels || (parts[p].size() >= sizes.min_own_basin_voxels &&
                                                  shallow_core >= sizes.min_own_core_voxels);
@@ -1157,7 +1158,8 @@ std::vector<std::vector<std::uint32_t>> join_across_unseen_walls(
     float best = parts[p].size() >= large_voxels ? static_cast<float>(kFaceMaxOffClayLine)
                                                  : kWallMaxOffClayLine;
     for (const auto& [q, n] : bordering) {
-      const float off = off_either_line(colour[p], colour[q]);
+      const float off = width[q] <= kFacePartMaxWidthMm ? off_either_line(colour[p], colour[q])
+                                                        : off_clay_line(colour[q], colour[p]);
       if ((n < kWallMinBorderShare * parts[p].size() && !level_wall(steps[q])) ||
           contacts[q] > kWallMaxContactShare * steps[q].size() || off >= best)
         continue;

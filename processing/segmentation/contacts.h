@@ -468,7 +468,17 @@ std::vector<std::vector<std::uint32_t>> split_at_contacts(
 // off the cored part's line, the cored part 0.0001 off the piece's). Over ten seeds (1001 / 5001
 // / 7001 / … / 37001) that joins 9012 and changes no other tray; over 38 runs (1 / 1001 / … /
 // 75001) it makes 9012 and 15033 right, and on four runs looked at only afterwards (77001 / 79001 /
-// 81001 / 83001) three trays (79091, 81028, 83004), none wrong.
+// 81001 / 83001) three trays (79091, 81028, 83004), none wrong. The cored part counts as the
+// face only where it is no wider than a face (kFacePartMaxWidthMm, clay.h; twice its deepest
+// voxel's distance from the boundary): a wide part is mostly surface, and a sherd lying under one
+// of a greyer clay took it for its face (1409066, never run before: two pieces 0.29–0.31 in hue
+// less grey than the 5,894-voxel sherd over them, 0.0087 off its line). Measured with a debug
+// build, every join of this rule over 40 of the 80 runs against the truth (135 of 137 to the
+// piece's own sherd): the piece lay less grey than the cored part by more than a clay's noise
+// only beside parts 9.4–13.1 mm wide (237072, 249048, 259076: by 0.071, 0.043 and 0.048), beside
+// wider ones (up to 55 mm) by 0.017 at most, within the line's end (off_clay_line). Over the 80
+// runs no tray changed; on 16 runs never run before 1409066's merge became a split, which
+// join_pieces_under_one_sherd (top_view_joins.cpp) then joins.
 inline constexpr double kWallPartMinMm2 = 40.0;
 inline constexpr double kWallMinBorderShare = 0.25;
 inline constexpr double kWallMaxOffClayLine = 0.015;

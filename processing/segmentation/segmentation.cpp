@@ -143,6 +143,9 @@ std::vector<std::vector<std::uint32_t>> clusters(const std::vector<Vec3f>& point
     parts = detached_pieces_to_their_sherd(std::move(parts), near, voxels.centres, voxel_rgb,
                                            tolerance, leaf);
     keep("detached", parts);
+    parts = join_pieces_under_one_sherd(std::move(parts), voxels.centres, voxel_rgb, tolerance,
+                                        leaf, sizes.min_own_basin_voxels);
+    keep("under", parts);
   }
   return points_of(voxels, parts);
 }

@@ -109,7 +109,7 @@ struct ClusteringStep {
   // "clusters"; with contact splitting "basins" (each core's watershed part), "small cores" (the
   // shallow and small cores' parts joined to their neighbours), "contacts" (one sherd's levels
   // and parts without a neck joined), with colours then "clay", "levels", "walls", "faces",
-  // "narrow", "folds", "detached"
+  // "narrow", "folds", "detached", "under"
   std::string name;
   std::vector<std::vector<std::uint32_t>> parts;
 };

@@ -1,5 +1,6 @@
 // Joining the parts of one sherd that the top view shows together: narrow strips, levels in
-// separate clusters and folds. Internal to processing/segmentation.
+// separate clusters, folds and the pieces of a sherd another lies across. Internal to
+// processing/segmentation.
 #pragma once
 
 #include <cstdint>
@@ -35,5 +36,14 @@ std::vector<std::vector<std::uint32_t>> join_levels_across_clusters(
 std::vector<std::vector<std::uint32_t>> join_folded_parts(
     std::vector<std::vector<std::uint32_t>> parts, const std::vector<Vec3f>& centres,
     const std::vector<Vec3f>& voxel_rgb, double radius, double leaf);
+
+// `parts` with the pieces of a sherd that another lies across joined: parts lying under one part
+// (above them across their top-view border, apart in 3-D, along kLevelMinStepPairs pairs or more),
+// of one hue and clay line, the smaller of them under `max_piece_voxels` (a sherd's area, as
+// contact_own_basin_mm2). The rule and its measurements: at join_pieces_under_one_sherd in
+// top_view_joins.cpp.
+std::vector<std::vector<std::uint32_t>> join_pieces_under_one_sherd(
+    std::vector<std::vector<std::uint32_t>> parts, const std::vector<Vec3f>& centres,
+    const std::vector<Vec3f>& voxel_rgb, double radius, double leaf, std::size_t max_piece_voxels);
 
 }  // namespace sherd::segmentation::detail
