@@ -145,19 +145,19 @@ std::vector<std::uint32_t> beside_other_owners(const std::vector<Vec3f>& centres
 }
 
 // Where parts (of kWallPartMinMm2 or more; smaller ones are crumbs) meet in the top view: per pair
-// (a, b), the heights between their voxels within `radius` of each other there (a < b), a's
-// voxels along the border with b, and the pairs of those voxels where b lies above a, apart in 3-D.
-// Only voxels of different owners count: of different clusters (`cluster_of`, each voxel's) —
-// apart in 3-D —, or of different parts where that is null.
+// (a, b), the heights between their voxels within `radius` of each other there (a < b), and a's
+// voxels along the border with b; where `under` is given, also the pairs of those voxels where b
+// lies above a, apart in 3-D, into it. Only voxels of different owners count: of different
+// clusters (`cluster_of`, each voxel's) — apart in 3-D —, or of different parts where that is null.
 struct TopViewBorders {
   std::map<std::pair<int, int>, std::vector<float>> steps;
   std::map<std::pair<int, int>, std::size_t> band;
-  std::map<std::pair<int, int>, std::size_t> under;
 };
 
 TopViewBorders top_view_borders(const std::vector<std::vector<std::uint32_t>>& parts,
                                 const std::vector<Vec3f>& centres,
-                                const std::vector<int>* cluster_of, double radius, double leaf) {
+                                const std::vector<int>* cluster_of, double radius, double leaf,
+                                std::map<std::pair<int, int>, std::size_t>* under = nullptr) {
   const auto min_voxels = static_cast<std::size_t>(kWallPartMinMm2 / (leaf * leaf));
   std::vector<int> part_of(centres.size(), -1);  // of the parts judged: large enough
   std::vector<std::uint32_t> judged;
@@ -184,8 +184,9 @@ TopViewBorders top_view_borders(const std::vector<std::vector<std::uint32_t>>& p
       const int q = part_of[n];
       add_once(beside, q);
       if (q > p) borders.steps[{p, q}].push_back(std::abs(centres[n].z() - centres[v].z()));
-      if (centres[n].z() > centres[v].z() && (centres[n] - centres[v]).squaredNorm() > radius2)
-        ++borders.under[{p, q}];
+      if (under != nullptr && centres[n].z() > centres[v].z() &&
+          (centres[n] - centres[v]).squaredNorm() > radius2)
+        ++(*under)[{p, q}];
     }
     for (int q : beside) ++borders.band[{p, q}];
   }
@@ -406,7 +407,7 @@ std::vector<std::vector<std::uint32_t>> join_levels_across_clusters(
     const std::vector<Vec3f>& voxel_rgb, const std::vector<int>& cluster_of, double radius,
     double leaf) {
   const int n_parts = static_cast<int>(parts.size());
-  auto [steps, band, under] = top_view_borders(parts, centres, &cluster_of, radius, leaf);
+  auto [steps, band] = top_view_borders(parts, centres, &cluster_of, radius, leaf);
   if (steps.empty()) return parts;
   const std::vector<Vec3f> colour = colour_sums(parts, voxel_rgb);
   std::vector<double> width(n_parts, 0.0);
@@ -456,7 +457,7 @@ std::vector<std::vector<std::uint32_t>> join_folded_parts(
     std::vector<std::vector<std::uint32_t>> parts, const std::vector<Vec3f>& centres,
     const std::vector<Vec3f>& voxel_rgb, double radius, double leaf) {
   const int n_parts = static_cast<int>(parts.size());
-  auto [steps, band, under] = top_view_borders(parts, centres, nullptr, radius, leaf);
+  auto [steps, band] = top_view_borders(parts, centres, nullptr, radius, leaf);
   const std::vector<Vec3f> colour = colour_sums(parts, voxel_rgb);
   std::vector<double> width(n_parts, 0.0);
   Groups group(n_parts);
@@ -509,10 +510,11 @@ std::vector<std::vector<std::uint32_t>> join_pieces_under_one_sherd(
     std::vector<std::vector<std::uint32_t>> parts, const std::vector<Vec3f>& centres,
     const std::vector<Vec3f>& voxel_rgb, double radius, double leaf, std::size_t max_piece_voxels) {
   const int n_parts = static_cast<int>(parts.size());
-  const auto borders = top_view_borders(parts, centres, nullptr, radius, leaf);
+  std::map<std::pair<int, int>, std::size_t> under;  // step pairs, per (lower, upper) part
+  top_view_borders(parts, centres, nullptr, radius, leaf, &under);
   // Per part, the parts it lies across, with the step pairs along each one's border with it.
   std::vector<std::vector<std::pair<int, std::size_t>>> lying_under(n_parts);
-  for (const auto& [pair, step_pairs] : borders.under) {
+  for (const auto& [pair, step_pairs] : under) {
     if (step_pairs >= kLevelMinStepPairs)
       lying_under[pair.second].emplace_back(pair.first, step_pairs);
   }
